@@ -1,0 +1,39 @@
+// Axis-aligned bounding box and the slab test (Kay & Kajiya 1986; Williams
+// et al. 2005 for the inverse-direction form).
+#pragma once
+#include "math.h"
+
+namespace tessera {
+
+struct AABB {
+  vec3 lo{kInf};
+  vec3 hi{-kInf};
+
+  void grow(const vec3& p) { lo = glm::min(lo, p); hi = glm::max(hi, p); }
+  void grow(const AABB& b) { lo = glm::min(lo, b.lo); hi = glm::max(hi, b.hi); }
+  bool empty() const { return lo.x > hi.x; }
+  vec3 extent() const { return hi - lo; }
+  vec3 center() const { return 0.5f * (lo + hi); }
+  float half_area() const {
+    if (empty()) return 0.0f;
+    vec3 e = extent();
+    return e.x * e.y + e.y * e.z + e.z * e.x;
+  }
+  bool contains(const AABB& b) const {
+    return b.empty() || (glm::all(glm::lessThanEqual(lo, b.lo)) && glm::all(glm::greaterThanEqual(hi, b.hi)));
+  }
+};
+
+// Returns the entry distance of the ray into [lo, hi] or kInf on a miss.
+// The exit distance is widened by 1 + 2 gamma(3) so that rounding never
+// makes the test miss a box the ray grazes (pbrt-v4, 6.1.2; Ize 2013).
+inline float intersect_box(const vec3& lo, const vec3& hi, const vec3& o, const vec3& inv_d, float tmax) {
+  vec3 t0 = (lo - o) * inv_d;
+  vec3 t1 = (hi - o) * inv_d;
+  vec3 tn = glm::min(t0, t1), tf = glm::max(t0, t1);
+  float tnear = std::max(std::max(tn.x, tn.y), std::max(tn.z, 0.0f));
+  float tfar = std::min(std::min(tf.x, tf.y), std::min(tf.z, tmax)) * (1.0f + 2.0f * gamma(3));
+  return tnear <= tfar ? tnear : kInf;
+}
+
+}  // namespace tessera

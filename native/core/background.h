@@ -1,0 +1,41 @@
+// The world: a constant colour or an equirectangular environment image
+// (Blender's Environment Texture, with an optional rotation from a Mapping
+// node), times the Background strength. The image is importance-sampled by
+// its luminance times sin(theta) (pbrt-v4, 12.5.2).
+#pragma once
+#include <vector>
+#include "sampling.h"
+
+namespace tessera {
+
+class Background {
+ public:
+  // Constant world.
+  void set_color(const vec3& c) { color_ = c; }
+  // Environment image: width x height RGB floats, rows bottom to top as
+  // Blender stores them; rotation maps world directions into texture space.
+  void set_image(std::vector<vec3> pixels, int width, int height, const glm::mat3& rotation, const vec3& strength);
+
+  bool emits() const { return has_image_ ? max_component(strength_) > 0.0f : max_component(color_) > 0.0f; }
+  bool has_image() const { return has_image_; }
+  vec3 Le(const vec3& dir) const;
+  bool sample(vec2 u, vec3* wi, float* pdf) const;
+  float pdf(const vec3& wi) const;
+  float average_luminance() const;
+
+ private:
+  vec2 direction_to_uv(const vec3& dir) const;
+  vec3 uv_to_direction(vec2 uv) const;
+  vec3 lookup(vec2 uv) const;
+
+  vec3 color_{0.0f};
+  bool has_image_ = false;
+  std::vector<vec3> pixels_;
+  int width_ = 0, height_ = 0;
+  glm::mat3 rotation_{1.0f};
+  vec3 strength_{1.0f};
+  Distribution1D marginal_;                // over rows
+  std::vector<Distribution1D> conditional_; // per row, over columns
+};
+
+}  // namespace tessera

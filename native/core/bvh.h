@@ -1,0 +1,47 @@
+// Bounding volume hierarchy over boxes: the builders (midpoint, full-sweep SAH,
+// binned SAH) and the node layout. One array of 32-byte nodes; a leaf names a
+// contiguous range of the reordered primitives, an interior node its first
+// child (the second follows it). Used for the per-mesh BLAS and the TLAS.
+#pragma once
+#include <vector>
+#include "aabb.h"
+
+namespace tessera {
+
+struct BVHNode {
+  vec3 lo;
+  uint32_t first;  // leaf: first primitive; interior: index of the left child
+  vec3 hi;
+  uint32_t count;  // leaf: primitive count (> 0); interior: 0
+  bool is_leaf() const { return count > 0; }
+};
+static_assert(sizeof(BVHNode) == 32, "BVHNode must stay 32 bytes");
+
+enum class SplitMethod { Midpoint, SweepSAH, BinnedSAH };
+
+struct BuildOptions {
+  SplitMethod method = SplitMethod::BinnedSAH;
+  int bins = 16;            // binned SAH only
+  int max_leaf_size = 8;    // a leaf never holds more, unless primitives are inseparable
+  float traversal_cost = 1.0f;
+  float intersection_cost = 1.0f;
+  bool parallel = true;     // TBB tasks for large subtrees
+};
+
+struct BVH {
+  std::vector<BVHNode> nodes;
+  std::vector<uint32_t> prim_order;  // prim_order[i] = input index of the i-th reordered primitive
+
+  const AABB bounds() const { return nodes.empty() ? AABB{} : AABB{nodes[0].lo, nodes[0].hi}; }
+  size_t memory_bytes() const { return nodes.capacity() * sizeof(BVHNode) + prim_order.capacity() * sizeof(uint32_t); }
+  int depth() const;
+};
+
+// Builds a BVH over primitives given by their bounds (centroids are the box
+// centres). Empty boxes (degenerate or invalid primitives) are kept out of the tree.
+BVH build_bvh(const std::vector<AABB>& prim_bounds, const BuildOptions& options = {});
+
+// SAH cost of a built tree, relative to its root area (MacDonald & Booth 1990).
+float sah_cost(const BVH& bvh, const BuildOptions& options = {});
+
+}  // namespace tessera

@@ -1,0 +1,103 @@
+#include "integrator.h"
+
+#include "bsdf.h"
+
+namespace tessera {
+
+vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters) {
+  const LightSampler& lights = scene.light_sampler();
+  vec3 L(0.0f), beta(1.0f);
+  float prev_bsdf_pdf = 0.0f;
+  bool count_emission_fully = true;  // camera rays and (later) specular bounces: no MIS
+
+  for (int bounce = 0;; ++bounce) {
+    Hit hit;
+    ++counters.rays;
+    const bool found = scene.intersect(ray, hit);
+    const float t_end = found ? hit.t : ray.tmax;
+
+    // Area lights are seen by scattered rays, not by the camera (as in
+    // Cycles), and do not block the ray.
+    if (bounce > 0) {
+      float t_light;
+      vec3 le;
+      int light = lights.intersect_area(ray.o, ray.d, t_end, &t_light, &le);
+      if (light >= 0) {
+        float cos_l = -glm::dot(ray.d, lights.lights()[light].direction);
+        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_area(light, t_light, cos_l));
+        L += beta * le * w;
+      }
+    }
+
+    if (!found) {
+      if (scene.background.emits()) {
+        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_background(ray.d));
+        L += beta * scene.background.Le(ray.d) * w;
+      }
+      break;
+    }
+
+    const SurfaceInteraction si = scene.interaction(ray, hit);
+    const Material& material = scene.materials[si.material];
+    const vec3 le = material.emission(si.back_face);
+    if (max_component(le) > 0.0f) {
+      float w = 1.0f;
+      if (!count_emission_fully) {
+        float cos_l = std::abs(glm::dot(ray.d, si.ng));
+        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(hit.instance, hit.prim, hit.t, cos_l));
+      }
+      L += beta * le * w;
+    }
+    if (bounce > options.max_bounces) break;
+
+    // Shade on the side the ray arrived from (Blender surfaces are two-sided).
+    const vec3 ng = si.back_face ? -si.ng : si.ng;
+    const vec3 ns = si.back_face ? -si.ns : si.ns;
+    const BSDF bsdf(ns, ng, material);
+    const vec3 wo = -ray.d;
+
+    // Next-event estimation.
+    const float u_light = sampler.get_1d();
+    const vec2 u_light_pos = sampler.get_2d();
+    LightSample ls;
+    if (!lights.empty() && lights.sample(si.p, u_light, u_light_pos, ls)) {
+      vec3 f = bsdf.f(wo, ls.wi) * std::abs(glm::dot(ls.wi, ns));
+      if (max_component(f) > 0.0f) {
+        vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
+        // Stop just short of the sampled light point, relative to its distance.
+        float tmax = std::isinf(ls.dist) ? kInf : ls.dist * (1.0f - 1e-4f);
+        ++counters.rays;
+        if (!scene.occluded(origin, ls.wi, tmax)) {
+          float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(wo, ls.wi));
+          L += beta * f * ls.li * (w / ls.pdf);
+        }
+      }
+    }
+
+    // Continue the path by sampling the BSDF.
+    BSDFSample bs;
+    if (!bsdf.sample_f(wo, sampler.get_2d(), bs)) break;
+    beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+    prev_bsdf_pdf = bs.pdf;
+    count_emission_fully = false;
+    ray.o = offset_ray_origin(si.p, si.p_error, ng, bs.wi);
+    ray.d = bs.wi;
+    ray.tmax = kInf;
+
+    // Russian roulette (pbrt-v4, 14.1.5): survive with the throughput's
+    // largest component.
+    const float u_rr = sampler.get_1d();
+    if (bounce + 1 >= options.rr_depth) {
+      float q = std::max(0.0f, 1.0f - max_component(beta));
+      if (u_rr < q) break;
+      beta /= 1.0f - q;
+    }
+  }
+  if (!is_finite(L)) {
+    ++counters.invalid_samples;
+    return vec3(0.0f);
+  }
+  return L;
+}
+
+}  // namespace tessera

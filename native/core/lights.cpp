@@ -1,0 +1,215 @@
+#include "lights.h"
+
+#include <numeric>
+
+#include "background.h"
+
+namespace tessera {
+
+namespace {
+
+// Smooth edge of a spot light, as Cycles' spot_light_attenuation: the
+// cosine to the axis, cut at the cone and smoothstepped over the blend.
+float spot_attenuation(const Light& l, const vec3& dir_from_light) {
+  float c = glm::dot(dir_from_light, l.direction);
+  if (c <= l.spot_cos) return 0.0f;
+  float t = c - l.spot_cos;
+  if (l.spot_smooth > 0.0f && t < l.spot_smooth) {
+    float x = t / l.spot_smooth;
+    c *= x * x * (3.0f - 2.0f * x);
+  }
+  return c;
+}
+
+float light_power(const Light& l, float scene_radius) {
+  float lum = luminance(l.radiance);
+  switch (l.type) {
+    case LightType::Point:
+    case LightType::Spot:
+      return l.radius > 0.0f ? lum * 4.0f * kPi * kPi * l.radius * l.radius : lum * 4.0f * kPi;
+    case LightType::Sun: {
+      float e = l.radius > 0.0f ? lum * kPi * l.radius * l.radius : lum;
+      return e * kPi * scene_radius * scene_radius;
+    }
+    case LightType::Area:
+      return lum * kPi * l.area;
+    default:
+      return 0.0f;
+  }
+}
+
+}  // namespace
+
+void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle> triangles, const Background* world,
+                         float scene_radius) {
+  lights_ = std::move(lights);
+  triangles_ = std::move(triangles);
+  world_ = (world && world->emits()) ? world : nullptr;
+  std::vector<float> weights;
+  weights.reserve(lights_.size() + triangles_.size() + 1);
+  area_lights_.clear();
+  for (uint32_t i = 0; i < lights_.size(); ++i) {
+    weights.push_back(light_power(lights_[i], scene_radius));
+    if (lights_[i].type == LightType::Area) area_lights_.push_back(i);
+  }
+  for (const EmissiveTriangle& t : triangles_)
+    weights.push_back(kPi * t.area * (luminance(t.le_front) + luminance(t.le_back)));
+  if (world_) {
+    world_entry_ = uint32_t(weights.size());
+    weights.push_back(kPi * 4.0f * kPi * scene_radius * scene_radius * world_->average_luminance());
+  }
+  table_ = weights.empty() ? AliasTable{} : AliasTable(weights);
+  // Lookup from a hit (instance, prim) to its triangle light.
+  triangle_keys_.resize(triangles_.size());
+  triangle_order_.resize(triangles_.size());
+  std::iota(triangle_order_.begin(), triangle_order_.end(), 0u);
+  auto key = [&](uint32_t i) { return (uint64_t(triangles_[i].instance) << 32) | triangles_[i].prim; };
+  std::sort(triangle_order_.begin(), triangle_order_.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+  for (size_t i = 0; i < triangle_order_.size(); ++i) triangle_keys_[i] = key(triangle_order_[i]);
+}
+
+bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls) const {
+  if (table_.empty()) return false;
+  float pmf;
+  const uint32_t entry = table_.sample(u_select, &pmf);
+  if (pmf <= 0.0f) return false;
+  const uint32_t nl = uint32_t(lights_.size());
+  if (entry == world_entry_) {
+    float pdf;
+    if (!world_->sample(u, &ls.wi, &pdf)) return false;
+    ls.dist = kInf;
+    ls.li = world_->Le(ls.wi);
+    ls.pdf = pdf * pmf;
+    ls.is_delta = false;
+    return ls.pdf > 0.0f;
+  }
+  if (entry >= nl) {
+    const EmissiveTriangle& t = triangles_[entry - nl];
+    vec2 b = sample_uniform_triangle(u);
+    vec3 q = t.p0 + b.x * t.e1 + b.y * t.e2;
+    vec3 d = q - p;
+    float dist2 = glm::dot(d, d);
+    if (dist2 <= 0.0f) return false;
+    ls.dist = std::sqrt(dist2);
+    ls.wi = d / ls.dist;
+    float cos_l = -glm::dot(ls.wi, t.n);  // > 0: we see the front face
+    if (cos_l == 0.0f) return false;
+    ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
+    ls.pdf = pmf * dist2 / (std::abs(cos_l) * t.area);
+    ls.is_delta = false;
+    return max_component(ls.li) > 0.0f;
+  }
+  const Light& l = lights_[entry];
+  ls.is_delta = false;
+  switch (l.type) {
+    case LightType::Point:
+    case LightType::Spot: {
+      vec3 to_center = l.position - p;
+      float d2 = glm::dot(to_center, to_center);
+      if (d2 <= 0.0f) return false;
+      float d = std::sqrt(d2);
+      vec3 dir = to_center / d;
+      float atten = l.type == LightType::Spot ? spot_attenuation(l, -dir) : 1.0f;
+      if (atten <= 0.0f) return false;
+      if (l.radius <= 0.0f) {
+        ls.wi = dir;
+        ls.dist = d;
+        ls.li = l.radiance * atten / d2;
+        ls.pdf = pmf;
+        ls.is_delta = true;
+        return true;
+      }
+      // A sphere light seen from p is sampled as the disk facing p (Cycles 3.x).
+      Frame f(-dir);
+      vec2 disk = l.radius * sample_uniform_disk_concentric(u);
+      vec3 q = l.position + f.t * disk.x + f.b * disk.y;
+      vec3 w = q - p;
+      float dist2 = glm::dot(w, w);
+      ls.dist = std::sqrt(dist2);
+      ls.wi = w / ls.dist;
+      float cos_l = std::abs(glm::dot(ls.wi, f.n));
+      if (cos_l <= 0.0f) return false;
+      ls.li = l.radiance * atten;
+      ls.pdf = pmf * dist2 / (cos_l * kPi * l.radius * l.radius);
+      return true;
+    }
+    case LightType::Sun: {
+      if (l.radius <= 0.0f) {
+        ls.wi = -l.direction;
+        ls.dist = kInf;
+        ls.li = l.radiance;
+        ls.pdf = pmf;
+        ls.is_delta = true;
+        return true;
+      }
+      // Point on a disk of radius tan(half angle) one unit away (Cycles).
+      Frame f(-l.direction);
+      vec2 disk = l.radius * sample_uniform_disk_concentric(u);
+      vec3 w = f.n + f.t * disk.x + f.b * disk.y;
+      float len2 = glm::dot(w, w);
+      float len = std::sqrt(len2);
+      ls.wi = w / len;
+      ls.dist = kInf;
+      ls.li = l.radiance;
+      ls.pdf = pmf * len2 * len / (kPi * l.radius * l.radius);
+      return true;
+    }
+    case LightType::Area: {
+      vec2 s = l.ellipse ? sample_uniform_disk_concentric(u) : 2.0f * u - vec2(1.0f);
+      vec3 q = l.position + s.x * l.axis_u + s.y * l.axis_v;
+      vec3 w = q - p;
+      float dist2 = glm::dot(w, w);
+      if (dist2 <= 0.0f) return false;
+      ls.dist = std::sqrt(dist2);
+      ls.wi = w / ls.dist;
+      float cos_l = -glm::dot(ls.wi, l.direction);
+      if (cos_l <= 0.0f) return false;  // area lights emit from their front only
+      ls.li = l.radiance;
+      ls.pdf = pmf * dist2 / (cos_l * l.area);
+      return true;
+    }
+    default:
+      return false;
+  }
+}
+
+float LightSampler::pdf_triangle(uint32_t instance, uint32_t prim, float dist, float cos_l) const {
+  const uint64_t key = (uint64_t(instance) << 32) | prim;
+  auto it = std::lower_bound(triangle_keys_.begin(), triangle_keys_.end(), key);
+  if (it == triangle_keys_.end() || *it != key || cos_l <= 0.0f) return 0.0f;
+  const uint32_t t = triangle_order_[it - triangle_keys_.begin()];
+  return selection_pmf(uint32_t(lights_.size()) + t) * dist * dist / (cos_l * triangles_[t].area);
+}
+
+float LightSampler::pdf_area(uint32_t light, float dist, float cos_l) const {
+  if (cos_l <= 0.0f) return 0.0f;
+  return selection_pmf(light) * dist * dist / (cos_l * lights_[light].area);
+}
+
+float LightSampler::pdf_background(const vec3& wi) const {
+  if (!world_) return 0.0f;
+  return selection_pmf(world_entry_) * world_->pdf(wi);
+}
+
+int LightSampler::intersect_area(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le) const {
+  int best = -1;
+  for (uint32_t i : area_lights_) {
+    const Light& l = lights_[i];
+    float denom = glm::dot(d, l.direction);
+    if (denom >= 0.0f) continue;  // back side or parallel: area lights are one-sided
+    float t = glm::dot(l.position - o, l.direction) / denom;
+    if (!(t > 0.0f && t < tmax)) continue;
+    vec3 q = o + t * d - l.position;
+    float a = glm::dot(q, l.axis_u) / glm::dot(l.axis_u, l.axis_u);
+    float b = glm::dot(q, l.axis_v) / glm::dot(l.axis_v, l.axis_v);
+    bool inside = l.ellipse ? a * a + b * b <= 1.0f : (std::abs(a) <= 1.0f && std::abs(b) <= 1.0f);
+    if (!inside) continue;
+    tmax = t;
+    best = int(i);
+    *t_hit = t;
+    *le = l.radiance;
+  }
+  return best;
+}
+
+}  // namespace tessera

@@ -1,0 +1,93 @@
+// Basic maths shared by the whole core: GLM vectors, rays, boxes and the
+// floating-point error bounds used for robust ray origins (pbrt-v4, 6.8).
+#pragma once
+#include <glm/glm.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <cstring>
+
+namespace tessera {
+
+using glm::vec2;
+using glm::vec3;
+using glm::vec4;
+using glm::mat4;
+using glm::uvec3;
+
+constexpr float kPi = 3.14159265358979323846f;
+constexpr float kInvPi = 0.31830988618379067154f;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// gamma(n) bounds the relative error of n chained float operations
+// (Higham; pbrt-v4 eq. 6.7).
+constexpr float kMachineEps = std::numeric_limits<float>::epsilon() * 0.5f;
+constexpr float gamma(int n) { return (n * kMachineEps) / (1 - n * kMachineEps); }
+
+inline float max_component(const vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+inline int max_dimension(const vec3& v) { return v.x > v.y ? (v.x > v.z ? 0 : 2) : (v.y > v.z ? 1 : 2); }
+inline float luminance(const vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+inline bool is_finite(const vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
+inline float sqr(float x) { return x * x; }
+
+struct Ray {
+  vec3 o;
+  vec3 d;
+  float tmax = kInf;
+};
+
+// Orthonormal basis around a unit vector (Duff et al. 2017, "Building an
+// orthonormal basis, revisited").
+inline void make_basis(const vec3& n, vec3& t, vec3& b) {
+  float sign = std::copysign(1.0f, n.z);
+  float a = -1.0f / (sign + n.z);
+  float c = n.x * n.y * a;
+  t = vec3(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
+  b = vec3(c, sign + n.y * n.y * a, -n.y);
+}
+
+struct Frame {
+  vec3 t, b, n;
+  explicit Frame(const vec3& normal) : n(normal) { make_basis(n, t, b); }
+  vec3 to_local(const vec3& v) const { return vec3(glm::dot(v, t), glm::dot(v, b), glm::dot(v, n)); }
+  vec3 to_world(const vec3& v) const { return t * v.x + b * v.y + n * v.z; }
+};
+
+// Next representable float towards +inf / -inf.
+inline float next_float_up(float v) {
+  if (std::isinf(v) && v > 0.f) return v;
+  if (v == -0.f) v = 0.f;
+  uint32_t ui;
+  std::memcpy(&ui, &v, sizeof ui);
+  ui = v >= 0 ? ui + 1 : ui - 1;
+  std::memcpy(&v, &ui, sizeof ui);
+  return v;
+}
+inline float next_float_down(float v) {
+  if (std::isinf(v) && v < 0.f) return v;
+  if (v == 0.f) v = -0.f;
+  uint32_t ui;
+  std::memcpy(&ui, &v, sizeof ui);
+  ui = v > 0 ? ui - 1 : ui + 1;
+  std::memcpy(&v, &ui, sizeof ui);
+  return v;
+}
+
+// Moves a surface point p with absolute error bound p_error off the surface
+// along the geometric normal n, to the side of w, far enough that a ray
+// leaving it cannot re-hit the same surface (pbrt-v4, 6.8.6).
+inline vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& n, const vec3& w) {
+  float d = glm::dot(glm::abs(n), p_error);
+  vec3 offset = d * n;
+  if (glm::dot(w, n) < 0) offset = -offset;
+  vec3 po = p + offset;
+  for (int i = 0; i < 3; ++i) {
+    if (offset[i] > 0) po[i] = next_float_up(po[i]);
+    else if (offset[i] < 0) po[i] = next_float_down(po[i]);
+  }
+  return po;
+}
+
+}  // namespace tessera

@@ -1,0 +1,54 @@
+// A triangle mesh in its own (object) space with its BVH: the bottom level
+// (BLAS) of the two-level acceleration structure. Stored once however many
+// instances use it. Triangle vertices are kept in BVH leaf order, so a leaf is
+// one contiguous run of memory; attributes stay in Blender's triangle order
+// and are reached through prim_ids only when a hit is shaded.
+#pragma once
+#include <string>
+#include <vector>
+#include "bvh.h"
+#include "triangle.h"
+
+namespace tessera {
+
+struct MeshInput {
+  const float* positions = nullptr;       // 3 per vertex
+  size_t num_vertices = 0;
+  const uint32_t* indices = nullptr;      // 3 per triangle
+  size_t num_triangles = 0;
+  const uint32_t* material_slots = nullptr;  // 1 per triangle, or null (all slot 0)
+  const float* corner_normals = nullptr;  // 9 per triangle (smooth shading), or null (flat)
+  const float* corner_uvs = nullptr;      // 6 per triangle, or null (no UV map needed)
+};
+
+struct Mesh {
+  std::vector<vec3> tri_verts;          // 3 per triangle, BVH leaf order
+  std::vector<uint32_t> prim_ids;       // leaf order -> Blender triangle index
+  std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
+  std::vector<vec3> corner_normals;     // Blender order, 3 per triangle; empty: flat
+  std::vector<vec2> corner_uvs;         // Blender order, 3 per triangle; empty: none
+  BVH bvh;
+  size_t num_input_triangles = 0;
+  size_t num_skipped_triangles = 0;     // non-finite or out-of-range vertices
+
+  AABB bounds() const { return bvh.bounds(); }
+  uint32_t slot(uint32_t prim_id) const { return material_slots.empty() ? 0 : material_slots[prim_id]; }
+  size_t memory_bytes() const;
+};
+
+// Validates the input (indices in range, finite positions), builds the BVH
+// and stores the triangles in leaf order. Invalid triangles are skipped and
+// counted, never stored.
+Mesh build_mesh(const MeshInput& in, const BuildOptions& options = {});
+
+struct MeshHit {
+  float t, u, v;
+  uint32_t prim;  // leaf-order index
+};
+
+// Closest hit in object space. ray.tmax shrinks to the hit distance.
+bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit);
+// Any hit before tmax.
+bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax);
+
+}  // namespace tessera

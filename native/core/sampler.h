@@ -1,0 +1,77 @@
+// Per-(pixel, sample) random numbers: Owen-scrambled Sobol points with
+// hash-based nested uniform scrambling (Burley 2020, "Practical Hash-based
+// Owen Scrambling", JCGT 9(4)). Every value depends only on the pixel, the
+// sample index, the seed and the dimension, never on threads or tile order.
+#pragma once
+#include "math.h"
+
+namespace tessera {
+
+inline uint32_t hash_u32(uint32_t x) {  // "lowbias32" (Wellons 2018)
+  x ^= x >> 16;
+  x *= 0x7feb352dU;
+  x ^= x >> 15;
+  x *= 0x846ca68bU;
+  x ^= x >> 16;
+  return x;
+}
+inline uint32_t hash_combine(uint32_t seed, uint32_t v) { return hash_u32(seed ^ (v + 0x9e3779b9U + (seed << 6) + (seed >> 2))); }
+
+inline uint32_t reverse_bits(uint32_t x) {
+  x = ((x >> 1) & 0x55555555U) | ((x & 0x55555555U) << 1);
+  x = ((x >> 2) & 0x33333333U) | ((x & 0x33333333U) << 2);
+  x = ((x >> 4) & 0x0f0f0f0fU) | ((x & 0x0f0f0f0fU) << 4);
+  x = ((x >> 8) & 0x00ff00ffU) | ((x & 0x00ff00ffU) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+// Laine-Karras style permutation with Burley's improved constants.
+inline uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+  x += seed;
+  x ^= x * 0x6c50b47cU;
+  x ^= x * 0xb82f1e52U;
+  x ^= x * 0xc7afe638U;
+  x ^= x * 0x8d22f6e6U;
+  return x;
+}
+inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
+  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+// The first two Sobol dimensions: van der Corput, and the dimension whose
+// direction numbers are v_i = v_{i-1} ^ (v_{i-1} >> 1).
+inline uint32_t sobol_dim0(uint32_t index) { return reverse_bits(index); }
+inline uint32_t sobol_dim1(uint32_t index) {
+  uint32_t x = 0, v = 0x80000000U;
+  for (; index; index >>= 1, v ^= v >> 1)
+    if (index & 1U) x ^= v;
+  return x;
+}
+
+inline float u32_to_unit_float(uint32_t x) { return std::min(float(x) * 0x1p-32f, 0x1.fffffep-1f); }
+
+// Stream for one (pixel, sample): dimension pairs are drawn in order, each
+// pair decorrelated from the others by its own scrambling seed.
+struct Sampler {
+  uint32_t pixel_seed;
+  uint32_t sample;
+  uint32_t dimension = 0;
+
+  Sampler(uint32_t px, uint32_t py, uint32_t sample_index, uint32_t seed)
+      : pixel_seed(hash_combine(hash_combine(hash_u32(seed), px), py)), sample(sample_index) {}
+
+  vec2 get_2d() {
+    const uint32_t s = hash_combine(pixel_seed, dimension++);
+    const uint32_t index = nested_uniform_scramble(sample, s);
+    const uint32_t x = nested_uniform_scramble(sobol_dim0(index), hash_combine(s, 1));
+    const uint32_t y = nested_uniform_scramble(sobol_dim1(index), hash_combine(s, 2));
+    return vec2(u32_to_unit_float(x), u32_to_unit_float(y));
+  }
+  float get_1d() {
+    const uint32_t s = hash_combine(pixel_seed, dimension++);
+    const uint32_t index = nested_uniform_scramble(sample, s);
+    return u32_to_unit_float(nested_uniform_scramble(sobol_dim0(index), hash_combine(s, 1)));
+  }
+};
+
+}  // namespace tessera

@@ -1,0 +1,98 @@
+// Warps from the unit square to the shapes the renderer samples, with their
+// densities (pbrt-v4 appendix A.5 and chapter 4 of "Ray Tracing Gems").
+#pragma once
+#include <vector>
+#include "math.h"
+
+namespace tessera {
+
+inline vec2 sample_uniform_disk_concentric(vec2 u) {
+  vec2 o = 2.0f * u - vec2(1.0f);
+  if (o.x == 0.0f && o.y == 0.0f) return vec2(0.0f);
+  float r, theta;
+  if (std::abs(o.x) > std::abs(o.y)) {
+    r = o.x;
+    theta = 0.25f * kPi * (o.y / o.x);
+  } else {
+    r = o.y;
+    theta = 0.5f * kPi - 0.25f * kPi * (o.x / o.y);
+  }
+  return r * vec2(std::cos(theta), std::sin(theta));
+}
+
+// Cosine-weighted hemisphere around +z (Malley's method); pdf = cos / pi.
+inline vec3 sample_cosine_hemisphere(vec2 u) {
+  vec2 d = sample_uniform_disk_concentric(u);
+  float z = safe_sqrt(1.0f - d.x * d.x - d.y * d.y);
+  return vec3(d.x, d.y, z);
+}
+
+inline vec3 sample_uniform_sphere(vec2 u) {
+  float z = 1.0f - 2.0f * u.x;
+  float r = safe_sqrt(1.0f - z * z);
+  float phi = 2.0f * kPi * u.y;
+  return vec3(r * std::cos(phi), r * std::sin(phi), z);
+}
+constexpr float kUniformSpherePdf = 1.0f / (4.0f * kPi);
+
+// Uniform point on a triangle, as barycentrics (b1, b2) of the 2nd and 3rd
+// vertex (Heitz 2019, "A low-distortion map between triangle and square").
+inline vec2 sample_uniform_triangle(vec2 u) {
+  float b0, b1;
+  if (u.x < u.y) {
+    b0 = u.x / 2;
+    b1 = u.y - b0;
+  } else {
+    b1 = u.y / 2;
+    b0 = u.x - b1;
+  }
+  return vec2(b1, 1.0f - b0 - b1);
+}
+
+inline float power_heuristic(float f_pdf, float g_pdf) {
+  float f = f_pdf * f_pdf, g = g_pdf * g_pdf;
+  if (std::isinf(f)) return 1.0f;
+  return f + g > 0.0f ? f / (f + g) : 0.0f;
+}
+
+// Discrete distribution by the alias method (Walker 1977; Vose 1991):
+// O(1) sampling from one uniform number.
+class AliasTable {
+ public:
+  AliasTable() = default;
+  explicit AliasTable(const std::vector<float>& weights);
+  bool empty() const { return bins_.empty(); }
+  size_t size() const { return bins_.size(); }
+  // Returns an index; pmf receives its probability.
+  uint32_t sample(float u, float* pmf) const {
+    float x = u * bins_.size();
+    uint32_t i = std::min(uint32_t(x), uint32_t(bins_.size() - 1));
+    float frac = x - i;
+    uint32_t k = frac < bins_[i].q ? i : bins_[i].alias;
+    *pmf = bins_[k].p;
+    return k;
+  }
+  float pmf(uint32_t i) const { return bins_[i].p; }
+
+ private:
+  struct Bin {
+    float q;         // probability of keeping i
+    float p;         // normalized weight of i
+    uint32_t alias;  // taken otherwise
+  };
+  std::vector<Bin> bins_;
+};
+
+// Piecewise-constant 1D distribution with a CDF, sampled continuously
+// (pbrt-v4 A.4.2). Used for the environment map and the pixel filter.
+struct Distribution1D {
+  std::vector<float> func, cdf;
+  float integral = 0.0f;
+  Distribution1D() = default;
+  explicit Distribution1D(const float* f, size_t n);
+  size_t size() const { return func.size(); }
+  // Continuous sample in [0,1); pdf is the density w.r.t. that domain; offset the segment.
+  float sample_continuous(float u, float* pdf, size_t* offset) const;
+};
+
+}  // namespace tessera

@@ -1,0 +1,160 @@
+#include "scene.h"
+
+#include "traverse.h"
+
+namespace tessera {
+
+uint32_t Scene::add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials) {
+  Instance inst;
+  inst.mesh = mesh;
+  inst.to_world = to_world;
+  inst.to_local = glm::inverse(to_world);
+  inst.normal_to_world = glm::transpose(glm::mat3(inst.to_local));
+  inst.identity = to_world == mat4(1.0f);
+  inst.material_offset = uint32_t(instance_materials.size());
+  inst.num_slots = uint32_t(slot_materials.size());
+  instance_materials.insert(instance_materials.end(), slot_materials.begin(), slot_materials.end());
+  instances.push_back(inst);
+  return uint32_t(instances.size() - 1);
+}
+
+static AABB transform_box(const AABB& b, const mat4& m) {
+  AABB out;
+  if (b.empty()) return out;
+  for (int i = 0; i < 8; ++i) {
+    vec3 c((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
+    out.grow(vec3(m * vec4(c, 1.0f)));
+  }
+  return out;
+}
+
+std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
+  std::vector<EmissiveTriangle> out;
+  for (uint32_t i = 0; i < instances.size(); ++i) {
+    const Instance& inst = instances[i];
+    bool any = false;
+    for (uint32_t s = 0; s < inst.num_slots; ++s) any |= materials[material_of(inst, s)].is_emissive();
+    if (!any && !materials[0].is_emissive()) continue;
+    const Mesh& mesh = meshes[inst.mesh];
+    for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
+      const Material& m = materials[material_of(inst, mesh.slot(mesh.prim_ids[k]))];
+      if (!m.is_emissive()) continue;
+      vec3 p[3];
+      for (int j = 0; j < 3; ++j) p[j] = vec3(inst.to_world * vec4(mesh.tri_verts[3 * k + j], 1.0f));
+      vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+      float len = glm::length(c);
+      if (!(len > 0.0f) || !std::isfinite(len)) continue;
+      out.push_back({p[0], p[1] - p[0], p[2] - p[0], c / len, 0.5f * len, m.emission_front, m.emission_back, i, k});
+    }
+  }
+  return out;
+}
+
+void Scene::commit() {
+  std::vector<AABB> boxes(instances.size());
+  for (size_t i = 0; i < instances.size(); ++i) {
+    const Instance& inst = instances[i];
+    AABB b = transform_box(meshes[inst.mesh].bounds(), inst.to_world);
+    if (is_finite(b.lo) && is_finite(b.hi)) boxes[i] = b;
+  }
+  BuildOptions opt;
+  opt.max_leaf_size = 1;  // one instance per leaf: the ray is transformed once per instance
+  tlas_ = build_bvh(boxes, opt);
+  AABB b = tlas_.bounds();
+  float radius = b.empty() ? 1.0f : 0.5f * glm::length(b.extent());
+  light_sampler_.build(lights, collect_emissive_triangles(), &background, std::max(radius, 1e-6f));
+}
+
+template <bool kAnyHit>
+static bool trace_scene(const Scene& scene, const BVH& tlas, const vec3& o, const vec3& d, float tmax, Hit* hit) {
+  if (tlas.nodes.empty()) return false;
+  TraversalRay ray(o, d, tmax);
+  return traverse<kAnyHit>(tlas.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
+    bool any = false;
+    for (uint32_t k = first; k < first + count; ++k) {
+      const uint32_t id = tlas.prim_order[k];
+      const Instance& inst = scene.instances[id];
+      const Mesh& mesh = scene.meshes[inst.mesh];
+      vec3 lo = r.o, ld = r.d;
+      if (!inst.identity) {
+        lo = vec3(inst.to_local * vec4(r.o, 1.0f));
+        ld = glm::mat3(inst.to_local) * r.d;
+      }
+      if (kAnyHit) {
+        if (occluded_mesh(mesh, lo, ld, r.tmax)) return true;
+      } else {
+        MeshHit mh;
+        if (intersect_mesh(mesh, lo, ld, r.tmax, mh)) {
+          *hit = {mh.t, mh.u, mh.v, id, mh.prim};
+          any = true;
+        }
+      }
+    }
+    return any;
+  });
+}
+
+bool Scene::intersect(const Ray& ray, Hit& hit) const { return trace_scene<false>(*this, tlas_, ray.o, ray.d, ray.tmax, &hit); }
+
+bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {
+  return trace_scene<true>(*this, tlas_, o, d, tmax, nullptr);
+}
+
+SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
+  const Instance& inst = instances[hit.instance];
+  const Mesh& mesh = meshes[inst.mesh];
+  const vec3* v = &mesh.tri_verts[3 * size_t(hit.prim)];
+  const uint32_t prim_id = mesh.prim_ids[hit.prim];
+  const float b0 = 1.0f - hit.u - hit.v;
+  // Point from barycentrics, with its error bound (pbrt-v4, 6.8.4).
+  vec3 p = b0 * v[0] + hit.u * v[1] + hit.v * v[2];
+  vec3 err = gamma(7) * (glm::abs(b0 * v[0]) + glm::abs(hit.u * v[1]) + glm::abs(hit.v * v[2]));
+  vec3 ng = glm::cross(v[1] - v[0], v[2] - v[0]);
+  vec3 ns(0.0f);
+  if (!mesh.corner_normals.empty()) {
+    const vec3* n = &mesh.corner_normals[3 * size_t(prim_id)];
+    ns = b0 * n[0] + hit.u * n[1] + hit.v * n[2];
+  }
+  if (!inst.identity) {
+    const glm::mat3 m(inst.to_world);
+    const glm::mat3 abs_m(glm::abs(m[0]), glm::abs(m[1]), glm::abs(m[2]));
+    const vec3 t(inst.to_world[3]);
+    vec3 pw = m * p + t;
+    err = (1.0f + gamma(3)) * (abs_m * err) + gamma(3) * (abs_m * glm::abs(p) + glm::abs(t));
+    p = pw;
+    ng = inst.normal_to_world * ng;
+    ns = inst.normal_to_world * ns;
+  }
+  SurfaceInteraction si;
+  si.p = p;
+  si.p_error = err;
+  float ng_len = glm::length(ng);
+  si.ng = ng_len > 0.0f && std::isfinite(ng_len) ? ng / ng_len : -ray.d;
+  float ns_len = glm::length(ns);
+  si.ns = ns_len > 0.0f && std::isfinite(ns_len) ? ns / ns_len : si.ng;
+  // Shading normals live on the geometric front side.
+  if (glm::dot(si.ns, si.ng) < 0.0f) si.ns = -si.ns;
+  si.back_face = glm::dot(ray.d, si.ng) > 0.0f;
+  si.material = material_of(inst, mesh.slot(prim_id));
+  return si;
+}
+
+size_t Scene::num_triangles() const {
+  size_t n = 0;
+  for (const Mesh& m : meshes) n += m.prim_ids.size();
+  return n;
+}
+
+size_t Scene::num_instanced_triangles() const {
+  size_t n = 0;
+  for (const Instance& i : instances) n += meshes[i.mesh].prim_ids.size();
+  return n;
+}
+
+size_t Scene::memory_bytes() const {
+  size_t n = tlas_.memory_bytes() + instances.capacity() * sizeof(Instance);
+  for (const Mesh& m : meshes) n += m.memory_bytes();
+  return n;
+}
+
+}  // namespace tessera

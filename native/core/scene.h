@@ -1,0 +1,79 @@
+// The scene the core renders: unique meshes (each with its BLAS), instances
+// that place them (the TLAS is built over their world bounds), materials,
+// lights, world and camera. Built once per render from the add-on's arrays.
+#pragma once
+#include <string>
+#include <vector>
+#include "background.h"
+#include "camera.h"
+#include "lights.h"
+#include "material.h"
+#include "mesh.h"
+
+namespace tessera {
+
+struct Instance {
+  mat4 to_world{1.0f};
+  mat4 to_local{1.0f};
+  glm::mat3 normal_to_world{1.0f};
+  uint32_t mesh = 0;
+  uint32_t material_offset = 0;  // into Scene::instance_materials
+  uint32_t num_slots = 0;
+  bool identity = true;
+};
+
+struct Hit {
+  float t = kInf;
+  float u = 0.0f, v = 0.0f;
+  uint32_t instance = ~0u;
+  uint32_t prim = ~0u;  // leaf order within the instance's mesh
+};
+
+// What shading needs to know about a hit, in world space.
+struct SurfaceInteraction {
+  vec3 p;
+  vec3 p_error;   // absolute error bound of p, for robust ray origins
+  vec3 ng;        // unit geometric normal, front side
+  vec3 ns;        // unit shading normal, front side
+  bool back_face; // the ray arrived at the back of the triangle
+  uint32_t material;
+};
+
+class Scene {
+ public:
+  std::vector<Mesh> meshes;
+  std::vector<Instance> instances;
+  std::vector<uint32_t> instance_materials;  // per instance: material index per slot
+  std::vector<Material> materials;           // materials[0] is the default material
+  std::vector<Light> lights;
+  Background background;
+  Camera camera;
+  std::vector<std::string> warnings;
+
+  Scene() { materials.push_back(Material{}); }
+
+  uint32_t add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials);
+  // Builds the TLAS and the light sampler; call once after adding everything.
+  void commit();
+
+  bool intersect(const Ray& ray, Hit& hit) const;
+  bool occluded(const vec3& o, const vec3& d, float tmax) const;
+  SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
+
+  const LightSampler& light_sampler() const { return light_sampler_; }
+  AABB bounds() const { return tlas_.bounds(); }
+  size_t num_triangles() const;           // unique (stored) triangles
+  size_t num_instanced_triangles() const; // as rendered
+  size_t memory_bytes() const;            // triangles, attributes and BVHs
+  double build_seconds = 0.0;
+
+ private:
+  uint32_t material_of(const Instance& inst, uint32_t slot) const {
+    return slot < inst.num_slots ? instance_materials[inst.material_offset + slot] : 0;
+  }
+  std::vector<EmissiveTriangle> collect_emissive_triangles() const;
+  BVH tlas_;
+  LightSampler light_sampler_;
+};
+
+}  // namespace tessera

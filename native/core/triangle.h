@@ -1,0 +1,62 @@
+// Watertight ray/triangle intersection (Woop, Benthin, Wald 2013, "Watertight
+// Ray/Triangle Intersection", JCGT 2(1)). Rays aimed at a shared edge or vertex
+// hit at least one of the triangles meeting there; there are no cracks.
+#pragma once
+#include "math.h"
+
+namespace tessera {
+
+// Per-ray constants of the shear that maps the ray onto the +z axis,
+// computed once per ray (and once per instance for transformed rays).
+struct RayShear {
+  int kx, ky, kz;
+  float sx, sy, sz;
+
+  explicit RayShear(const vec3& d) {
+    kz = max_dimension(glm::abs(d));
+    kx = (kz + 1) % 3;
+    ky = (kx + 1) % 3;
+    if (d[kz] < 0.0f) std::swap(kx, ky);  // keep the winding order
+    sx = d[kx] / d[kz];
+    sy = d[ky] / d[kz];
+    sz = 1.0f / d[kz];
+  }
+};
+
+struct TriangleHit {
+  float t, u, v;  // distance and barycentrics of v1 and v2
+};
+
+// Returns true and fills hit if the ray hits triangle (p0, p1, p2) at
+// 0 < t < tmax. Edges count as inside (watertight, no gaps).
+inline bool intersect_triangle(const vec3& p0, const vec3& p1, const vec3& p2, const vec3& o,
+                               const RayShear& s, float tmax, TriangleHit& hit) {
+  const vec3 a = p0 - o, b = p1 - o, c = p2 - o;
+  const float ax = a[s.kx] - s.sx * a[s.kz], ay = a[s.ky] - s.sy * a[s.kz];
+  const float bx = b[s.kx] - s.sx * b[s.kz], by = b[s.ky] - s.sy * b[s.kz];
+  const float cx = c[s.kx] - s.sx * c[s.kz], cy = c[s.ky] - s.sy * c[s.kz];
+  float u = cx * by - cy * bx;
+  float v = ax * cy - ay * cx;
+  float w = bx * ay - by * ax;
+  // On an exact zero, redo the edge functions in double (paper, section 3.3).
+  if (u == 0.0f || v == 0.0f || w == 0.0f) {
+    u = float(double(cx) * double(by) - double(cy) * double(bx));
+    v = float(double(ax) * double(cy) - double(ay) * double(cx));
+    w = float(double(bx) * double(ay) - double(by) * double(ax));
+  }
+  if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
+  const float det = u + v + w;
+  if (det == 0.0f) return false;
+  const float az = s.sz * a[s.kz], bz = s.sz * b[s.kz], cz = s.sz * c[s.kz];
+  const float t_scaled = u * az + v * bz + w * cz;
+  // Compare against the range without dividing: the sign of det flips both sides.
+  if (det < 0.0f ? (t_scaled >= 0.0f || t_scaled < tmax * det) : (t_scaled <= 0.0f || t_scaled > tmax * det))
+    return false;
+  const float inv_det = 1.0f / det;
+  hit.t = t_scaled * inv_det;
+  hit.u = v * inv_det;
+  hit.v = w * inv_det;
+  return hit.t > 0.0f && hit.t < tmax;
+}
+
+}  // namespace tessera

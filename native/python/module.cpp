@@ -1,0 +1,271 @@
+// Python bindings of the core: buffers in, pixels out. No rendering logic
+// lives here; every function converts arguments and calls into native/core.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <memory>
+#include <stdexcept>
+#include <thread>
+
+#include "core/render.h"
+#include "core/scene.h"
+
+namespace py = pybind11;
+using namespace tessera;
+
+namespace {
+
+template <typename T>
+using Array = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+// Checks that a buffer has the given trailing dimension and returns its rows.
+template <typename T>
+size_t rows_of(const Array<T>& a, py::ssize_t cols, const char* what) {
+  if (a.ndim() == 2 && a.shape(1) == cols) return size_t(a.shape(0));
+  if (a.ndim() == 1 && a.shape(0) % cols == 0) return size_t(a.shape(0) / cols);
+  throw std::invalid_argument(std::string(what) + " must have " + std::to_string(cols) +
+                              " values per row; got an array of shape " + py::str(py::tuple(py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim())))).cast<std::string>());
+}
+
+mat4 to_mat4(const Array<float>& m, const char* what) {
+  if (m.size() != 16) throw std::invalid_argument(std::string(what) + " must be a 4x4 matrix");
+  mat4 out;
+  const float* p = m.data();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) out[c][r] = p[4 * r + c];  // Blender rows -> GLM columns
+  return out;
+}
+
+vec3 to_vec3(const std::vector<float>& v, const char* what) {
+  if (v.size() < 3) throw std::invalid_argument(std::string(what) + " needs 3 components");
+  return vec3(v[0], v[1], v[2]);
+}
+
+class PySession {
+ public:
+  PySession(std::shared_ptr<Scene> scene, const RenderOptions& options)
+      : scene_(std::move(scene)), session_(*scene_, options) {}
+  ~PySession() {
+    session_.cancel();
+    if (thread_.joinable()) thread_.join();
+  }
+  void start() {
+    if (thread_.joinable()) throw std::runtime_error("this render session was already started");
+    done_ = false;
+    thread_ = std::thread([this] {
+      session_.render();
+      done_ = true;
+    });
+  }
+  // Waits up to timeout seconds; returns true when the render has finished.
+  bool wait(double timeout) {
+    py::gil_scoped_release release;
+    auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout);
+    while (!done_.load() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    if (done_.load() && thread_.joinable()) thread_.join();
+    return done_.load();
+  }
+  void render() {
+    py::gil_scoped_release release;
+    session_.render();
+  }
+  void cancel() { session_.cancel(); }
+  py::array_t<float> pixels() const {
+    std::vector<float> p = session_.pixels();
+    py::array_t<float> out({session_.height(), session_.width(), 4});
+    std::copy(p.begin(), p.end(), out.mutable_data());
+    return out;
+  }
+  py::dict stats() const {
+    RenderStats s = session_.stats();
+    py::dict d;
+    d["seconds"] = s.seconds;
+    d["rays"] = s.rays;
+    d["invalid_samples"] = s.invalid_samples;
+    d["samples_done"] = s.samples_done;
+    d["cancelled"] = s.cancelled;
+    return d;
+  }
+  RenderSession& session() { return session_; }
+
+ private:
+  std::shared_ptr<Scene> scene_;
+  RenderSession session_;
+  std::thread thread_;
+  std::atomic<bool> done_{false};
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "Tessera's native core: scene building, BVH and path tracing";
+
+  py::class_<RenderOptions>(m, "RenderOptions")
+      .def(py::init<>())
+      .def_readwrite("samples", &RenderOptions::samples)
+      .def_readwrite("max_bounces", &RenderOptions::max_bounces)
+      .def_readwrite("rr_depth", &RenderOptions::rr_depth)
+      .def_readwrite("seed", &RenderOptions::seed)
+      .def_readwrite("threads", &RenderOptions::threads)
+      .def_readwrite("tile_size", &RenderOptions::tile_size)
+      .def_readwrite("filter_width", &RenderOptions::filter_width)
+      .def_readwrite("region_x0", &RenderOptions::region_x0)
+      .def_readwrite("region_y0", &RenderOptions::region_y0)
+      .def_readwrite("region_x1", &RenderOptions::region_x1)
+      .def_readwrite("region_y1", &RenderOptions::region_y1);
+
+  py::class_<Scene, std::shared_ptr<Scene>>(m, "Scene")
+      .def(py::init<>())
+      .def(
+          "add_mesh",
+          [](Scene& s, const Array<float>& positions, const Array<uint32_t>& indices, std::optional<Array<uint32_t>> slots,
+             std::optional<Array<float>> normals, std::optional<Array<float>> uvs) {
+            MeshInput in;
+            in.num_vertices = rows_of(positions, 3, "positions");
+            in.positions = positions.data();
+            in.num_triangles = rows_of(indices, 3, "indices");
+            in.indices = indices.data();
+            if (slots) {
+              if (size_t(slots->size()) != in.num_triangles)
+                throw std::invalid_argument("material_slots must have one entry per triangle");
+              in.material_slots = slots->data();
+            }
+            if (normals) {
+              if (rows_of(*normals, 3, "corner_normals") != 3 * in.num_triangles)
+                throw std::invalid_argument("corner_normals must have 3 normals per triangle");
+              in.corner_normals = normals->data();
+            }
+            if (uvs) {
+              if (rows_of(*uvs, 2, "corner_uvs") != 3 * in.num_triangles)
+                throw std::invalid_argument("corner_uvs must have 3 UVs per triangle");
+              in.corner_uvs = uvs->data();
+            }
+            Mesh mesh;
+            {
+              py::gil_scoped_release release;
+              mesh = build_mesh(in);
+            }
+            s.meshes.push_back(std::move(mesh));
+            return s.meshes.size() - 1;
+          },
+          py::arg("positions"), py::arg("indices"), py::arg("material_slots") = py::none(),
+          py::arg("corner_normals") = py::none(), py::arg("corner_uvs") = py::none(),
+          "Adds a mesh in object space and builds its BVH; returns its index.")
+      .def("mesh_skipped_triangles", [](const Scene& s, size_t i) { return s.meshes.at(i).num_skipped_triangles; })
+      .def(
+          "add_instance",
+          [](Scene& s, uint32_t mesh, const Array<float>& matrix, std::vector<uint32_t> slot_materials) {
+            if (mesh >= s.meshes.size()) throw std::out_of_range("add_instance: no mesh with index " + std::to_string(mesh));
+            for (uint32_t mat : slot_materials)
+              if (mat >= s.materials.size()) throw std::out_of_range("add_instance: no material with index " + std::to_string(mat));
+            return s.add_instance(mesh, to_mat4(matrix, "matrix"), slot_materials);
+          },
+          py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"))
+      .def(
+          "add_material",
+          [](Scene& s, std::vector<float> base_color, float metallic, float roughness, float specular, float ior,
+             float transmission, std::vector<float> emission_front, std::vector<float> emission_back) {
+            Material m;
+            m.base_color = to_vec3(base_color, "base_color");
+            m.metallic = metallic;
+            m.roughness = roughness;
+            m.specular = specular;
+            m.ior = ior;
+            m.transmission = transmission;
+            m.emission_front = to_vec3(emission_front, "emission_front");
+            m.emission_back = to_vec3(emission_back, "emission_back");
+            s.materials.push_back(m);
+            return s.materials.size() - 1;
+          },
+          py::arg("base_color"), py::arg("metallic") = 0.0f, py::arg("roughness") = 0.5f, py::arg("specular") = 0.5f,
+          py::arg("ior") = 1.45f, py::arg("transmission") = 0.0f,
+          py::arg("emission_front") = std::vector<float>{0, 0, 0}, py::arg("emission_back") = std::vector<float>{0, 0, 0})
+      .def(
+          "add_light",
+          [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
+             std::vector<float> axis_u, std::vector<float> axis_v, float radius, float spot_cos, float spot_smooth,
+             bool ellipse, std::vector<float> radiance) {
+            Light l;
+            if (type == "POINT") l.type = LightType::Point;
+            else if (type == "SPOT") l.type = LightType::Spot;
+            else if (type == "SUN") l.type = LightType::Sun;
+            else if (type == "AREA") l.type = LightType::Area;
+            else throw std::invalid_argument("unknown light type '" + type + "'; expected POINT, SPOT, SUN or AREA");
+            l.position = to_vec3(position, "position");
+            l.direction = glm::normalize(to_vec3(direction, "direction"));
+            l.axis_u = to_vec3(axis_u, "axis_u");
+            l.axis_v = to_vec3(axis_v, "axis_v");
+            l.radius = radius;
+            l.spot_cos = spot_cos;
+            l.spot_smooth = spot_smooth;
+            l.ellipse = ellipse;
+            l.radiance = to_vec3(radiance, "radiance");
+            l.area = 4.0f * glm::length(l.axis_u) * glm::length(l.axis_v) * (ellipse ? kPi / 4.0f : 1.0f);
+            s.lights.push_back(l);
+          },
+          py::arg("type"), py::arg("position"), py::arg("direction") = std::vector<float>{0, 0, -1},
+          py::arg("axis_u") = std::vector<float>{1, 0, 0}, py::arg("axis_v") = std::vector<float>{0, 1, 0},
+          py::arg("radius") = 0.0f, py::arg("spot_cos") = -1.0f, py::arg("spot_smooth") = 0.0f,
+          py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1})
+      .def("set_world_color", [](Scene& s, std::vector<float> c) { s.background.set_color(to_vec3(c, "color")); })
+      .def(
+          "set_world_image",
+          [](Scene& s, const Array<float>& pixels, const Array<float>& rotation, std::vector<float> strength) {
+            if (pixels.ndim() != 3 || (pixels.shape(2) != 3 && pixels.shape(2) != 4))
+              throw std::invalid_argument("world image must be an array of shape (height, width, 3 or 4)");
+            if (rotation.size() != 9) throw std::invalid_argument("world rotation must be a 3x3 matrix");
+            const int h = int(pixels.shape(0)), w = int(pixels.shape(1)), c = int(pixels.shape(2));
+            std::vector<vec3> px(size_t(w) * h);
+            const float* p = pixels.data();
+            for (size_t i = 0; i < px.size(); ++i) px[i] = vec3(p[c * i], p[c * i + 1], p[c * i + 2]);
+            glm::mat3 r;
+            const float* q = rotation.data();
+            for (int row = 0; row < 3; ++row)
+              for (int col = 0; col < 3; ++col) r[col][row] = q[3 * row + col];
+            s.background.set_image(std::move(px), w, h, r, to_vec3(strength, "strength"));
+          },
+          py::arg("pixels"), py::arg("rotation"), py::arg("strength"))
+      .def(
+          "set_camera",
+          [](Scene& s, const std::string& type, const Array<float>& matrix, float left, float right, float bottom,
+             float top, float clip_start, float clip_end, int width, int height) {
+            if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
+            Camera& c = s.camera;
+            c.type = type == "ORTHO" ? Camera::Type::Orthographic : Camera::Type::Perspective;
+            c.to_world = to_mat4(matrix, "camera matrix");
+            c.left = left, c.right = right, c.bottom = bottom, c.top = top;
+            c.clip_start = clip_start, c.clip_end = clip_end;
+            c.width = width, c.height = height;
+          },
+          py::arg("type"), py::arg("matrix"), py::arg("left"), py::arg("right"), py::arg("bottom"), py::arg("top"),
+          py::arg("clip_start"), py::arg("clip_end"), py::arg("width"), py::arg("height"))
+      .def("commit",
+           [](Scene& s) {
+             py::gil_scoped_release release;
+             auto t0 = std::chrono::steady_clock::now();
+             s.commit();
+             s.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+           })
+      .def_property_readonly("num_triangles", &Scene::num_triangles)
+      .def_property_readonly("num_instanced_triangles", &Scene::num_instanced_triangles)
+      .def_property_readonly("num_instances", [](const Scene& s) { return s.instances.size(); })
+      .def_property_readonly("num_meshes", [](const Scene& s) { return s.meshes.size(); })
+      .def_property_readonly("num_lights", [](const Scene& s) { return s.light_sampler().lights().size(); })
+      .def_property_readonly("num_emissive_triangles", [](const Scene& s) { return s.light_sampler().triangles().size(); })
+      .def_property_readonly("memory_bytes", &Scene::memory_bytes)
+      .def_property_readonly("tlas_build_seconds", [](const Scene& s) { return s.build_seconds; });
+
+  py::class_<PySession>(m, "Session")
+      .def(py::init<std::shared_ptr<Scene>, const RenderOptions&>(), py::arg("scene"), py::arg("options"))
+      .def("start", &PySession::start, "Starts rendering on a background thread.")
+      .def("wait", &PySession::wait, py::arg("timeout"), "Waits up to timeout seconds; True when finished.")
+      .def("render", &PySession::render, "Renders to completion on the calling thread (GIL released).")
+      .def("cancel", &PySession::cancel)
+      .def("pixels", &PySession::pixels, "RGBA float32 array (height, width, 4), rows bottom to top.")
+      .def("stats", &PySession::stats)
+      .def_property_readonly("samples_done", [](PySession& p) { return p.session().samples_done(); })
+      .def_property_readonly("samples_total", [](PySession& p) { return p.session().samples_total(); });
+}

@@ -1,0 +1,52 @@
+// Small scenes built in code for the native tests.
+#pragma once
+#include "core/scene.h"
+
+namespace tessera::fixtures {
+
+// Adds an axis-aligned quad (two triangles) as its own mesh and instance.
+inline void add_quad(Scene& s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t material, const mat4& xf = mat4(1.0f)) {
+  const float pos[12] = {a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z, d.x, d.y, d.z};
+  const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+  MeshInput in;
+  in.positions = pos;
+  in.num_vertices = 4;
+  in.indices = idx;
+  in.num_triangles = 2;
+  s.meshes.push_back(build_mesh(in));
+  s.add_instance(uint32_t(s.meshes.size() - 1), xf, {material});
+}
+
+// A closed white box [-1,1]^3 with a red left wall, lit by an emissive quad
+// under the ceiling, seen from the front through an opening at z = 1.
+inline void build_cornell_box(Scene& s, int width = 32, int height = 32, const mat4& xf = mat4(1.0f), float scale = 1.0f) {
+  Material white;
+  white.base_color = vec3(0.7f);
+  Material red;
+  red.base_color = vec3(0.7f, 0.1f, 0.1f);
+  Material light;
+  light.base_color = vec3(0.0f);
+  light.emission_front = light.emission_back = vec3(10.0f);
+  s.materials.push_back(white);
+  s.materials.push_back(red);
+  s.materials.push_back(light);
+  const uint32_t W = 1, R = 2, L = 3;
+  auto q = [&](vec3 a, vec3 b, vec3 c, vec3 d, uint32_t m) { add_quad(s, a * scale, b * scale, c * scale, d * scale, m, xf); };
+  q({-1, -1, -1}, {1, -1, -1}, {1, -1, 1}, {-1, -1, 1}, W);   // floor
+  q({-1, 1, -1}, {-1, 1, 1}, {1, 1, 1}, {1, 1, -1}, W);       // ceiling
+  q({-1, -1, -1}, {-1, 1, -1}, {1, 1, -1}, {1, -1, -1}, W);   // back
+  q({-1, -1, -1}, {-1, -1, 1}, {-1, 1, 1}, {-1, 1, -1}, R);   // left
+  q({1, -1, -1}, {1, 1, -1}, {1, 1, 1}, {1, -1, 1}, W);       // right
+  q({-0.3f, 0.99f, -0.3f}, {0.3f, 0.99f, -0.3f}, {0.3f, 0.99f, 0.3f}, {-0.3f, 0.99f, 0.3f}, L);
+  Camera& c = s.camera;
+  c.to_world = xf * mat4(vec4(1, 0, 0, 0), vec4(0, 1, 0, 0), vec4(0, 0, 1, 0), vec4(0, 0, 3.5f * scale, 1));
+  c.left = c.bottom = -0.3f;
+  c.right = c.top = 0.3f;
+  c.clip_start = 0.01f * scale;
+  c.clip_end = 100.0f * scale;
+  c.width = width;
+  c.height = height;
+  s.commit();
+}
+
+}  // namespace tessera::fixtures
