@@ -1,0 +1,16 @@
+"""Loads the native core. If it cannot load (another platform or Python, a
+missing library), the add-on still registers and says exactly why."""
+
+import sys
+
+try:
+    from . import _core as native  # noqa: F401
+    load_error = None
+except ImportError as e:  # pragma: no cover - exercised by a Blender test that hides the module
+    native = None
+    load_error = (
+        f"Tessera's native core could not be loaded into this Blender "
+        f"(Python {sys.version_info.major}.{sys.version_info.minor}, {sys.platform}): {e}. "
+        f"Install the Tessera build made for this Blender version and platform "
+        f"(see README.md, 'Install'), or rebuild it with scripts/setup.sh."
+    )

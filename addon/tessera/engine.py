@@ -1,0 +1,128 @@
+"""The RenderEngine: exports the evaluated scene, runs the native render on a
+background thread with the GIL released, shows progress, honours cancel and
+writes the pixels into Blender's render result in one bulk call."""
+
+import time
+
+import bpy
+import numpy as np
+
+from . import core
+
+
+def render_size(scene):
+    r = scene.render
+    scale = r.resolution_percentage / 100.0
+    return max(1, int(r.resolution_x * scale)), max(1, int(r.resolution_y * scale))
+
+
+def render_region(scene, width, height):
+    """(x0, y0, x1, y1) in pixels from the bottom-left: the border, or the frame."""
+    r = scene.render
+    if not r.use_border:
+        return 0, 0, width, height
+    x0, x1 = int(r.border_min_x * width + 0.5), int(r.border_max_x * width + 0.5)
+    y0, y1 = int(r.border_min_y * height + 0.5), int(r.border_max_y * height + 0.5)
+    if x1 <= x0 or y1 <= y0:
+        return 0, 0, width, height
+    return x0, y0, x1, y1
+
+
+def render_options(settings, region):
+    opt = core.native.RenderOptions()
+    opt.samples = settings.samples
+    opt.max_bounces = settings.max_bounces
+    opt.rr_depth = settings.rr_depth
+    opt.seed = settings.seed
+    opt.threads = settings.threads
+    opt.tile_size = settings.tile_size
+    opt.filter_width = settings.filter_width
+    opt.region_x0, opt.region_y0, opt.region_x1, opt.region_y1 = region
+    return opt
+
+
+class TesseraRenderEngine(bpy.types.RenderEngine):
+    bl_idname = "TESSERA"
+    bl_label = "Tessera"
+    bl_use_preview = False
+    bl_use_eevee_viewport = True
+    bl_use_postprocess = True
+
+    def render(self, depsgraph):
+        if core.native is None:
+            self.report({'ERROR'}, core.load_error)
+            return
+        from .export import ExportError, export_scene
+
+        scene = depsgraph.scene
+        width, height = render_size(scene)
+        region = render_region(scene, width, height)
+        self.update_stats("", "Tessera: exporting scene")
+        try:
+            scene_core, stats, report = export_scene(depsgraph, width, height, self.test_break)
+        except ExportError as e:
+            self.report({'ERROR'}, str(e))
+            return
+        for message in report.warnings:
+            self.report({'WARNING'}, message)
+            print(f"Tessera: warning: {message}")
+        if scene_core is None:
+            return  # cancelled during export
+        if stats["triangles"] == 0:
+            self.report({'WARNING'}, "Tessera: the scene has no visible geometry; only the world is rendered.")
+
+        settings = scene.tessera
+        session = core.native.Session(scene_core, render_options(settings, region))
+        x0, y0, x1, y1 = region
+        # With a border but no crop, Blender keeps the full frame and wants the region at its offset.
+        if scene.render.use_border and not scene.render.use_crop_to_border:
+            rx, ry = x0, y0
+        else:
+            rx, ry = 0, 0
+        w, h = x1 - x0, y1 - y0
+        result = self.begin_result(rx, ry, w, h)
+        layer = result.layers[0]
+        total = settings.samples
+        start = time.perf_counter()
+        session.start()
+        shown = 0
+        while not session.wait(0.1):
+            if self.test_break():
+                session.cancel()
+                session.wait(30.0)
+                self.end_result(result, cancel=True)
+                return
+            done = session.samples_done
+            elapsed = time.perf_counter() - start
+            self.update_progress(done / max(1, total))
+            self.update_stats("", f"Tessera | Sample {done}/{total} | {elapsed:.1f} s")
+            if done > shown:
+                self._write(layer, session.pixels())
+                self.update_result(result)
+                shown = done
+        self._write(layer, session.pixels())
+        self.end_result(result)
+        rs = session.stats()
+        rays_per_s = rs["rays"] / max(rs["seconds"], 1e-9)
+        summary = (f"Tessera: {width}x{height} region {w}x{h}, {rs['samples_done']} samples, "
+                   f"export {stats['export_seconds']:.3f} s, BVH {stats['blas_build_seconds'] + stats['tlas_build_seconds']:.3f} s, "
+                   f"render {rs['seconds']:.3f} s, {stats['triangles']} triangles "
+                   f"({stats['instanced_triangles']} instanced, {stats['instances']} instances), "
+                   f"{rays_per_s / 1e6:.2f} Mrays/s")
+        if rs["invalid_samples"]:
+            summary += f", {rs['invalid_samples']} NaN/Inf samples discarded"
+        print(summary)
+        self.update_stats("", summary)
+
+    @staticmethod
+    def _write(layer, pixels):
+        # One bulk write of every pass of the layer (only Combined for now).
+        layer.passes.foreach_set("rect", np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+
+
+def register():
+    bpy.utils.register_class(TesseraRenderEngine)
+
+
+def unregister():
+    bpy.utils.unregister_class(TesseraRenderEngine)

@@ -1,0 +1,80 @@
+"""Turns the evaluated Blender scene (the depsgraph) into the core's Scene,
+one module per Blender concept. No file is written; every array goes to the
+core through the buffer protocol."""
+
+import time
+
+from .. import core
+from . import camera, lights, materials, mesh, world
+
+
+class ExportError(Exception):
+    """The scene cannot be rendered; the message says why and what to do."""
+
+
+class Report:
+    """Collects warnings once per subject, for the engine to show."""
+
+    def __init__(self):
+        self.warnings = []
+        self._seen = set()
+
+    def warn(self, subject, message):
+        if (subject, message) not in self._seen:
+            self._seen.add((subject, message))
+            self.warnings.append(message)
+
+
+def export_scene(depsgraph, width, height, is_cancelled=lambda: False):
+    """Returns (core Scene, stats dict, Report). Raises ExportError."""
+    t0 = time.perf_counter()
+    report = Report()
+    scene_core = core.native.Scene()
+    bl_scene = depsgraph.scene
+
+    cam = camera.export_camera(depsgraph, width, height, report)
+    if cam is None:
+        raise ExportError(
+            f"Scene '{bl_scene.name}' has no active camera. Add a camera and make it active "
+            f"(Scene Properties > Camera), or pass one with --python-expr.")
+    scene_core.set_camera(**cam)
+
+    mat_cache = materials.MaterialCache(scene_core, report)
+    mesh_cache = mesh.MeshCache(scene_core, report)
+    num_instances = 0
+    for inst in depsgraph.object_instances:
+        if is_cancelled():
+            return None, None, report
+        obj = inst.object
+        if obj.type == 'LIGHT':
+            lights.export_light(scene_core, obj, inst.matrix_world, report)
+            continue
+        if obj.type not in mesh.GEOMETRY_TYPES:
+            continue
+        if not inst.show_self and not inst.is_instance:
+            continue  # an instancer that only shows its instances
+        mesh_id = mesh_cache.get(obj)
+        if mesh_id is None:
+            continue
+        slot_materials = [mat_cache.get(slot.material) for slot in obj.material_slots]
+        matrix = mesh.matrix_array(inst.matrix_world, obj.name, report)
+        if matrix is None:
+            continue
+        scene_core.add_instance(mesh_id, matrix, slot_materials)
+        num_instances += 1
+
+    world.export_world(scene_core, bl_scene.world, report)
+    export_seconds = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    scene_core.commit()
+    stats = {
+        "export_seconds": export_seconds - mesh_cache.build_seconds,
+        "blas_build_seconds": mesh_cache.build_seconds,
+        "tlas_build_seconds": time.perf_counter() - t1,
+        "triangles": scene_core.num_triangles,
+        "instanced_triangles": scene_core.num_instanced_triangles,
+        "instances": num_instances,
+        "meshes": scene_core.num_meshes,
+        "memory_bytes": scene_core.memory_bytes,
+    }
+    return scene_core, stats, report

@@ -1,0 +1,102 @@
+"""Tessera's panels in Render Properties, and Blender's own panels (output,
+dimensions, colour management, camera, light, material, world) enabled for
+the engine."""
+
+import bpy
+
+from . import core
+from .engine import TesseraRenderEngine
+
+ENGINE = TesseraRenderEngine.bl_idname
+
+
+class TesseraPanel:
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class TESSERA_PT_sampling(TesseraPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.tessera
+        if core.load_error:
+            layout.label(text="Native core not loaded; see the Info editor for why", icon='ERROR')
+        col = layout.column(align=True)
+        col.prop(settings, "samples")
+        col.prop(settings, "seed")
+        layout.prop(settings, "filter_width")
+
+
+class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.tessera
+        col = layout.column(align=True)
+        col.prop(settings, "max_bounces")
+        col.prop(settings, "rr_depth")
+
+
+class TESSERA_PT_performance(TesseraPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.tessera
+        col = layout.column(align=True)
+        col.prop(settings, "threads")
+        col.prop(settings, "tile_size")
+
+
+classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance)
+
+# Blender's own panels that apply to any engine which renders the usual data.
+_BLENDER_PANELS = (
+    "RENDER_PT_color_management", "RENDER_PT_color_management_curves", "RENDER_PT_format",
+    "RENDER_PT_frame_range", "RENDER_PT_output", "RENDER_PT_output_views", "RENDER_PT_encoding",
+    "RENDER_PT_encoding_video", "RENDER_PT_encoding_audio", "RENDER_PT_post_processing", "RENDER_PT_stamp",
+    "RENDER_PT_stamp_note", "RENDER_PT_stamp_burn", "RENDER_PT_time_stretching", "RENDER_PT_format_presets",
+    "DATA_PT_context_camera", "DATA_PT_lens", "DATA_PT_camera", "DATA_PT_camera_display", "DATA_PT_camera_safe_areas",
+    "DATA_PT_camera_background_image", "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture", "DATA_PT_custom_props_camera",
+    "DATA_PT_context_light", "DATA_PT_light", "DATA_PT_area", "DATA_PT_spot", "DATA_PT_EEVEE_light",
+    "DATA_PT_custom_props_light",
+    "MATERIAL_PT_preview", "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface",
+    "MATERIAL_PT_custom_props", "MATERIAL_PT_viewport",
+    "WORLD_PT_context_world", "EEVEE_WORLD_PT_surface", "WORLD_PT_custom_props", "WORLD_PT_viewport_display",
+    "VIEWLAYER_PT_layer", "VIEWLAYER_PT_layer_passes",
+)
+
+
+def _blender_panels():
+    for name in _BLENDER_PANELS:
+        panel = getattr(bpy.types, name, None)
+        if panel is not None and hasattr(panel, "COMPAT_ENGINES"):
+            yield panel
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in _blender_panels():
+        panel.COMPAT_ENGINES.add(ENGINE)
+
+
+def unregister():
+    for panel in _blender_panels():
+        panel.COMPAT_ENGINES.discard(ENGINE)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

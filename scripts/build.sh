@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Builds the native core and places the Python module inside addon/tessera.
+# The module is built for the Python that Blender embeds (Debian's Blender
+# 3.4.1 embeds the system Python 3.11).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${BUILD_DIR:-build}
+PYTHON=${TESSERA_PYTHON:-/usr/bin/python3}
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE="$PYTHON" ${CMAKE_ARGS:-} >/dev/null
+cmake --build "$BUILD_DIR" -j"$(nproc)"
+cp -f "$BUILD_DIR"/_core*.so addon/tessera/
+echo "tessera build: $(ls addon/tessera/_core*.so)"

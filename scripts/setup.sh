@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Sets up a fresh Debian 12 machine for Tessera: installs Blender and the build
+# dependencies from Debian's packages, builds the native core against the
+# Python that Blender embeds, installs and enables the add-on for this user.
+# Safe to run again; it only redoes what is needed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(blender cmake g++ make pybind11-dev libglm-dev libtbb-dev python3-dev python3-numpy python3-pytest
+          googletest libgtest-dev)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "tessera setup: installing ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+scripts/build.sh
+scripts/install_addon.sh
