@@ -1,45 +1,61 @@
-// Surface scattering at a shading point, in the local frame of the shading
-// normal (z up). For now the diffuse lobe of the Principled BSDF: Lambertian
-// reflection of the base colour (pbrt-v4, 9.2).
+// Blender's Principled BSDF as Cycles 3.x evaluates it (principled v1): a
+// sum of lobes, each with its Cycles weight:
+//   diffuse   (1 - metallic)(1 - transmission) base  Burley diffuse with retro-reflection
+//   specular  1 - (1 - metallic) transmission         GGX, Fresnel interpolated from cspec0
+//   glass     (1 - metallic) transmission             GGX reflection F(wo) + refraction base (1 - F(wo))
+// One lobe is sampled per bounce, chosen by its estimated albedo, and the
+// lobes are combined by one-sample MIS (pbrt-v4, 9.x; Cycles principled.h).
+// Local directions are in the shading frame, whose z points to wo's side.
 #pragma once
 #include "material.h"
+#include "microfacet.h"
 #include "sampling.h"
 
 namespace tessera {
 
 struct BSDFSample {
-  vec3 wi;    // world space
-  vec3 f;     // BSDF value
-  float pdf;  // solid-angle density
+  vec3 wi;     // world space
+  vec3 f;      // BSDF value (for a delta lobe: its weight / |cos wi|)
+  float pdf;   // solid-angle density (for a delta lobe: the lobe's probability)
+  bool delta;  // specular: no MIS with light sampling
 };
 
-struct BSDF {
-  Frame frame;
-  vec3 ng;  // geometric normal, on the side of the incoming ray
-  vec3 albedo;
+class BSDF {
+ public:
+  // ns, ng: shading and geometric normals, both on wo's side; back_face: wo
+  // is on the back of the surface (glass is then left, not entered).
+  BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world);
 
-  BSDF(const vec3& shading_normal, const vec3& geometric_normal, const Material& m)
-      : frame(shading_normal), ng(geometric_normal), albedo(m.base_color) {}
+  vec3 f(const vec3& wi_world) const;
+  float pdf(const vec3& wi_world) const;
+  bool sample_f(float u_lobe, vec2 u, BSDFSample& s) const;
+  // False when every lobe is a delta: light sampling cannot contribute.
+  bool has_smooth_lobes() const { return has_smooth_; }
 
-  // Light is reflected only when wo and wi are on the same side of the
-  // geometric surface; this avoids light leaking through interpolated normals.
-  vec3 f(const vec3& wo, const vec3& wi) const {
-    if (glm::dot(wi, ng) * glm::dot(wo, ng) <= 0.0f) return vec3(0.0f);
-    float cos_i = glm::dot(wi, frame.n);
-    return cos_i > 0.0f ? albedo * kInvPi : vec3(0.0f);
-  }
-  float pdf(const vec3& wo, const vec3& wi) const {
-    if (glm::dot(wi, ng) * glm::dot(wo, ng) <= 0.0f) return 0.0f;
-    return std::max(0.0f, glm::dot(wi, frame.n)) * kInvPi;
-  }
-  bool sample_f(const vec3& wo, vec2 u, BSDFSample& s) const {
-    vec3 local = sample_cosine_hemisphere(u);
-    if (local.z <= 0.0f) return false;
-    s.wi = frame.to_world(local);
-    s.pdf = local.z * kInvPi;
-    s.f = f(wo, s.wi);
-    return s.pdf > 0.0f && max_component(s.f) > 0.0f;
-  }
+ private:
+  enum Lobe { kDiffuse, kSpecular, kGlassReflect, kGlassRefract, kNumLobes };
+  vec3 eval_lobe(int lobe, const vec3& wi) const;
+  float pdf_lobe(int lobe, const vec3& wi) const;
+  bool is_delta(int lobe) const { return lobe == kSpecular ? spec_ggx_.alpha <= kSmoothAlpha : lobe >= kGlassReflect && glass_ggx_.alpha <= kSmoothAlpha; }
+  bool same_side(const vec3& wi_world) const { return glm::dot(wi_world, ng_) > 0.0f; }
+
+  Frame frame_;
+  vec3 ng_;
+  vec3 wo_;             // local
+  vec3 wo_world_;
+  vec3 diffuse_weight_;
+  float roughness_;
+  vec3 cspec0_;
+  float spec_weight_;
+  float spec_ior_;
+  GGX spec_ggx_;
+  float glass_weight_;
+  vec3 glass_color_;
+  float eta_;
+  float fresnel_o_;
+  GGX glass_ggx_;
+  float prob_[kNumLobes] = {};
+  bool has_smooth_ = false;
 };
 
 }  // namespace tessera

@@ -10,7 +10,9 @@ static float blackman_harris(float x, float width) {
 
 PixelFilter::PixelFilter(float width) {
   constexpr int kTable = 256, kSteps = 4096;
-  width = std::max(width, 1e-3f);
+  // Cycles stretches the Blackman-Harris window over twice the filter width
+  // (film.cpp, filter_table), so 1.5 px spans 3 px; match its look.
+  width = 2.0f * std::max(width, 1e-3f);
   std::vector<double> cdf(kSteps + 1, 0.0);
   for (int i = 0; i < kSteps; ++i) {
     float x = -0.5f * width + width * (i + 0.5f) / kSteps;

@@ -8,7 +8,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
-  bool count_emission_fully = true;  // camera rays and (later) specular bounces: no MIS
+  bool count_emission_fully = true;  // camera rays and delta bounces: no MIS
 
   for (int bounce = 0;; ++bounce) {
     Hit hit;
@@ -53,22 +53,21 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     // Shade on the side the ray arrived from (Blender surfaces are two-sided).
     const vec3 ng = si.back_face ? -si.ng : si.ng;
     const vec3 ns = si.back_face ? -si.ns : si.ns;
-    const BSDF bsdf(ns, ng, material);
-    const vec3 wo = -ray.d;
+    const BSDF bsdf(ns, ng, material, si.back_face, -ray.d);
 
     // Next-event estimation.
     const float u_light = sampler.get_1d();
     const vec2 u_light_pos = sampler.get_2d();
     LightSample ls;
-    if (!lights.empty() && lights.sample(si.p, u_light, u_light_pos, ls)) {
-      vec3 f = bsdf.f(wo, ls.wi) * std::abs(glm::dot(ls.wi, ns));
+    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, u_light, u_light_pos, ls)) {
+      vec3 f = bsdf.f(ls.wi) * std::abs(glm::dot(ls.wi, ns));
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
         // Stop just short of the sampled light point, relative to its distance.
         float tmax = std::isinf(ls.dist) ? kInf : ls.dist * (1.0f - 1e-4f);
         ++counters.rays;
         if (!scene.occluded(origin, ls.wi, tmax)) {
-          float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(wo, ls.wi));
+          float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
           L += beta * f * ls.li * (w / ls.pdf);
         }
       }
@@ -76,10 +75,11 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
 
     // Continue the path by sampling the BSDF.
     BSDFSample bs;
-    if (!bsdf.sample_f(wo, sampler.get_2d(), bs)) break;
+    const float u_lobe = sampler.get_1d();
+    if (!bsdf.sample_f(u_lobe, sampler.get_2d(), bs)) break;
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
     prev_bsdf_pdf = bs.pdf;
-    count_emission_fully = false;
+    count_emission_fully = bs.delta;
     ray.o = offset_ray_origin(si.p, si.p_error, ng, bs.wi);
     ray.d = bs.wi;
     ray.tmax = kInf;

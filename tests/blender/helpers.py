@@ -1,0 +1,110 @@
+"""Rendering helpers for the Blender tests: render the open file with an
+engine at a given size, samples and bounces, and read the float pixels back."""
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+
+SHARED = os.environ.get("TESSERA_SHARED",
+                        os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared"))
+SCENES = os.path.join(SHARED, "scenes")
+
+
+def open_scene(name):
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(SCENES, name))
+    return bpy.context.scene
+
+
+def set_size(scene, width, height=None):
+    """Renders at width x height keeping the aspect when height is None."""
+    r = scene.render
+    if height is None:
+        height = max(1, round(width * r.resolution_y / r.resolution_x))
+    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+
+
+def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
+    """Renders the scene's camera view; returns float32 (H, W, 4), rows top to bottom."""
+    r = scene.render
+    r.engine = engine
+    if engine == 'CYCLES':
+        scene.cycles.device = 'CPU'
+        scene.cycles.samples = samples
+        scene.cycles.max_bounces = bounces
+        for kind in ("diffuse", "glossy", "transmission", "volume", "transparent_max"):
+            setattr(scene.cycles, f"{kind}_bounces" if kind != "transparent_max" else kind, max(bounces, 1) if kind != "volume" else 0)
+        scene.cycles.use_denoising = False
+        scene.cycles.use_adaptive_sampling = False
+        scene.cycles.seed = seed
+        scene.cycles.sample_clamp_direct = 0.0
+        scene.cycles.sample_clamp_indirect = 0.0
+        scene.cycles.caustics_reflective = True
+        scene.cycles.caustics_refractive = True
+        scene.cycles.blur_glossy = 0.0
+        r.threads_mode = 'AUTO' if threads == 0 else 'FIXED'
+        if threads:
+            r.threads = threads
+    else:
+        t = scene.tessera
+        t.samples, t.max_bounces, t.seed, t.threads = samples, bounces, seed, threads
+    r.image_settings.file_format = 'OPEN_EXR'
+    r.image_settings.color_depth = '32'
+    r.use_compositing = False
+    r.use_sequencer = False
+    path = os.path.join(tempfile.mkdtemp(prefix="tessera_test_"), f"{engine.lower()}.exr")
+    r.filepath = path
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    px = np.empty(w * h * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    os.remove(path)
+    return px.reshape(h, w, 4)[::-1]
+
+
+def downsample(img, factor):
+    h, w = img.shape[0] // factor * factor, img.shape[1] // factor * factor
+    return img[:h, :w, :3].reshape(h // factor, factor, w // factor, factor, 3).mean(axis=(1, 3))
+
+
+def compare(test, ref):
+    """Mean per channel ratio, relative RMSE after 1/8 downsampling and the worst 8x8 block."""
+    mean_t = test[..., :3].reshape(-1, 3).mean(axis=0)
+    mean_r = ref[..., :3].reshape(-1, 3).mean(axis=0)
+    dt, dr = downsample(test, 8), downsample(ref, 8)
+    scale = max(float(dr.mean()), 1e-8)
+    rel_rmse = float(np.sqrt(np.mean((dt - dr) ** 2)) / scale)
+    bt, br = downsample(dt, 8) if min(dt.shape[:2]) >= 8 else dt, downsample(dr, 8) if min(dr.shape[:2]) >= 8 else dr
+    worst_block = float(np.max(np.abs(bt - br).mean(axis=-1) / np.maximum(br.mean(axis=-1), scale * 0.1)))
+    return {"mean_test": mean_t, "mean_ref": mean_r,
+            "mean_rel_diff": np.abs(mean_t - mean_r) / np.maximum(mean_r, 1e-6),
+            "rel_rmse": rel_rmse, "worst_block": worst_block}
+
+
+def remove_duplicate_faces(scene):
+    """Deletes faces that repeat another face of the same mesh exactly.
+    Returns how many were removed. (Cycles 3.4 renders such coincident faces
+    with z-fighting stripes, Tessera as one surface; comparisons use clean data.)"""
+    import bmesh
+    removed = 0
+    for obj in scene.objects:
+        if obj.type != 'MESH':
+            continue
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        seen, doomed = set(), []
+        for f in bm.faces:
+            key = tuple(sorted(tuple(round(c, 6) for c in v.co) for v in f.verts))
+            if key in seen:
+                doomed.append(f)
+            else:
+                seen.add(key)
+        if doomed:
+            bmesh.ops.delete(bm, geom=doomed, context='FACES_ONLY')
+            bm.to_mesh(obj.data)
+            removed += len(doomed)
+        bm.free()
+    return removed

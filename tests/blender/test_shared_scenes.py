@@ -1,0 +1,37 @@
+"""Renders the shared scenes with Tessera and with Cycles at the same size,
+samples and bounces, and compares them."""
+
+import numpy as np
+import pytest
+
+from helpers import compare, open_scene, remove_duplicate_faces, render, set_size
+
+
+# Issue 2: mean per channel within 5% of Cycles on the two Cornell boxes.
+@pytest.mark.parametrize("name", ["cornell_mcguire.blend", "cbox_mitsuba.blend"])
+def test_mean_matches_cycles(name):
+    scene = open_scene(name)
+    # McGuire's box repeats two faces; Cycles 3.4 shades them with z-fighting
+    # stripes (about 6% of this image's mean). Both engines get clean data here;
+    # test_duplicate_faces_render_as_one_surface covers Tessera on the original.
+    remove_duplicate_faces(scene)
+    set_size(scene, 96)
+    ours = render(scene, 'TESSERA', samples=256, bounces=8)
+    ref = render(scene, 'CYCLES', samples=256, bounces=8)
+    assert np.all(np.isfinite(ours)), "Tessera wrote NaN or Inf pixels"
+    c = compare(ours, ref)
+    print(name, {k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(c["mean_rel_diff"] < 0.05), f"{name}: mean per channel {c['mean_test']} vs Cycles {c['mean_ref']}"
+
+
+def test_duplicate_faces_render_as_one_surface():
+    """Coincident duplicate faces (McGuire's box has two) give the same image
+    as the deduplicated mesh: no z-fighting, no self-shadowing."""
+    scene = open_scene("cornell_mcguire.blend")
+    set_size(scene, 64)
+    original = render(scene, 'TESSERA', samples=64, bounces=4)
+    assert remove_duplicate_faces(scene) == 2
+    clean = render(scene, 'TESSERA', samples=64, bounces=4)
+    c = compare(original, clean)
+    assert np.all(c["mean_rel_diff"] < 0.01), c
+    assert c["worst_block"] < 0.05, c
