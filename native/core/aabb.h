@@ -36,4 +36,28 @@ inline float intersect_box(const vec3& lo, const vec3& hi, const vec3& o, const 
   return tnear <= tfar ? tnear : kInf;
 }
 
+// The same test with separate origins for the lo and hi planes. A ray parallel
+// to an axis (direction component below 1e-30, inverse clamped to +-1e30)
+// whose origin lies exactly on a face would otherwise get 0 * 1e30 = 0 as the
+// far distance of that slab and miss the box; the ray setup nudges the origin
+// by a tiny delta, inwards for each plane (o_lo = o + delta, o_hi = o - delta),
+// which only ever makes the test more conservative. Non-parallel axes have
+// delta = 0 and the arithmetic above.
+inline float intersect_box(const vec3& lo, const vec3& hi, const vec3& o_lo, const vec3& o_hi, const vec3& inv_d,
+                           float tmax) {
+  vec3 t0 = (lo - o_lo) * inv_d;
+  vec3 t1 = (hi - o_hi) * inv_d;
+  vec3 tn = glm::min(t0, t1), tf = glm::max(t0, t1);
+  float tnear = std::max(std::max(tn.x, tn.y), std::max(tn.z, 0.0f));
+  float tfar = std::min(std::min(tf.x, tf.y), std::min(tf.z, tmax)) * (1.0f + 2.0f * gamma(3));
+  return tnear <= tfar ? tnear : kInf;
+}
+
+// Per-axis origin nudge for the two-origin slab test: 0 unless the direction
+// component is (near) zero. delta * 1e30 >= 1e10, so the nudged slab spans at
+// least t in [-1e10, 1e10].
+inline float parallel_axis_delta(float o, float d) {
+  return std::abs(d) < 1e-30f ? std::abs(o) * 1e-6f + 1e-20f : 0.0f;
+}
+
 }  // namespace tessera

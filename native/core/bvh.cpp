@@ -25,7 +25,12 @@ struct Builder {
   std::vector<BVHNode> nodes;
   std::atomic<uint32_t> node_count{1};
 
-  Builder(const std::vector<AABB>& b, const BuildOptions& o) : bounds(b), opt(o) {}
+  uint32_t block = 1;
+
+  Builder(const std::vector<AABB>& b, const BuildOptions& o)
+      : bounds(b), opt(o), block(uint32_t(std::max(1, o.sah_block_size))) {}
+
+  float blocks(uint32_t n) const { return float((n + block - 1) / block); }
 
   AABB range_bounds(uint32_t begin, uint32_t end, AABB* centroid_bounds) const {
     AABB box, cbox;
@@ -69,7 +74,7 @@ struct Builder {
         acc.grow(bin_box[b]);
         cnt += bin_count[b];
         if (cnt == 0 || right_count[b + 1] == 0) continue;
-        float cost = acc.half_area() * cnt + right_area[b + 1] * right_count[b + 1];
+        float cost = acc.half_area() * blocks(cnt) + right_area[b + 1] * blocks(right_count[b + 1]);
         if (cost < best.cost) best = {axis, lo + (b + 1) / scale, 0, cost};
       }
     }
@@ -94,7 +99,7 @@ struct Builder {
       acc = AABB{};
       for (uint32_t i = 0; i + 1 < n; ++i) {
         acc.grow(bounds[order[i]]);
-        float cost = acc.half_area() * (i + 1) + right_area[i + 1] * (n - i - 1);
+        float cost = acc.half_area() * blocks(i + 1) + right_area[i + 1] * blocks(n - i - 1);
         if (cost < best.cost) best = {axis, 0.0f, i + 1, cost};
       }
     }
@@ -137,7 +142,7 @@ struct Builder {
                      prims.begin());
     } else {
       Split split = opt.method == SplitMethod::SweepSAH ? find_sweep(begin, end) : find_binned(begin, end, cbox);
-      const float leaf_cost = opt.intersection_cost * n;
+      const float leaf_cost = opt.intersection_cost * blocks(n);
       const float split_cost =
           split.axis < 0 ? kInf : opt.traversal_cost + opt.intersection_cost * split.cost / box.half_area();
       if (n <= uint32_t(opt.max_leaf_size) && (leaf_cost <= split_cost || split.axis < 0))

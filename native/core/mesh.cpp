@@ -2,7 +2,6 @@
 
 #include <tbb/parallel_for.h>
 
-#include "traverse.h"
 
 namespace tessera {
 
@@ -28,17 +27,20 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
     }
     boxes[i] = box;
   });
-  mesh.bvh = build_bvh(boxes, options);
-  const size_t kept = mesh.bvh.prim_order.size();
+  BuildOptions opt = options;
+  if (opt.sah_block_size <= 0) opt.sah_block_size = 4;  // Tri4 leaves
+  opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
+  BVH binary = build_bvh(boxes, opt);
+  const size_t kept = binary.prim_order.size();
   mesh.num_skipped_triangles = nt - kept;
   mesh.tri_verts.resize(3 * kept);
-  mesh.prim_ids = mesh.bvh.prim_order;
+  mesh.prim_ids = std::move(binary.prim_order);
   tbb::parallel_for(size_t(0), kept, [&](size_t i) {
     const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
     for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
   });
-  // The BVH's own order array is now the mesh's prim_ids; do not keep it twice.
-  mesh.bvh.prim_order = {};
+  mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data());
+  mesh.bvh.sah_cost = sah_cost(binary, options);
   if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);
   if (in.corner_normals) {
     const vec3* n = reinterpret_cast<const vec3*>(in.corner_normals);
@@ -51,35 +53,18 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   return mesh;
 }
 
-template <bool kAnyHit>
-static bool trace_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit* hit) {
-  if (mesh.bvh.nodes.empty()) return false;
-  TraversalRay ray(o, d, tmax);
-  const RayShear shear(d);
-  const vec3* verts = mesh.tri_verts.data();
-  bool found = traverse<kAnyHit>(mesh.bvh.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
-    bool any = false;
-    for (uint32_t i = first; i < first + count; ++i) {
-      TriangleHit th;
-      if (intersect_triangle(verts[3 * i], verts[3 * i + 1], verts[3 * i + 2], r.o, shear, r.tmax, th)) {
-        r.tmax = th.t;
-        any = true;
-        if (kAnyHit) return true;
-        *hit = {th.t, th.u, th.v, i};
-      }
-    }
-    return any;
-  });
-  tmax = ray.tmax;
+bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit, TraversalOrder order) {
+  BVH4Hit h;
+  const bool found = order == TraversalOrder::Ordered ? bvh4_intersect<true>(mesh.bvh, o, d, tmax, h)
+                                                      : bvh4_intersect<false>(mesh.bvh, o, d, tmax, h);
+  if (found) hit = {h.t, h.u, h.v, h.prim};
   return found;
 }
 
-bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit) {
-  return trace_mesh<false>(mesh, o, d, tmax, &hit);
+bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax) {
+  return bvh4_occluded(mesh.bvh, o, d, tmax);
 }
 
-bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax) {
-  return trace_mesh<true>(mesh, o, d, tmax, nullptr);
-}
+float mesh_sah_cost(const Mesh& mesh) { return mesh.bvh.sah_cost; }
 
 }  // namespace tessera

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 #include "bvh.h"
+#include "bvh4.h"
 #include "triangle.h"
 
 namespace tessera {
@@ -27,11 +28,11 @@ struct Mesh {
   std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
   std::vector<vec3> corner_normals;     // Blender order, 3 per triangle; empty: flat
   std::vector<vec2> corner_uvs;         // Blender order, 3 per triangle; empty: none
-  BVH bvh;
+  BVH4 bvh;                             // four-wide BVH over tri_verts (leaves: contiguous ranges)
   size_t num_input_triangles = 0;
   size_t num_skipped_triangles = 0;     // non-finite or out-of-range vertices
 
-  AABB bounds() const { return bvh.bounds(); }
+  AABB bounds() const { return bvh.bounds; }
   uint32_t slot(uint32_t prim_id) const { return material_slots.empty() ? 0 : material_slots[prim_id]; }
   size_t memory_bytes() const;
 };
@@ -46,9 +47,17 @@ struct MeshHit {
   uint32_t prim;  // leaf-order index
 };
 
+// Children visited nearest first (default) or in stored order (for benchmarks).
+enum class TraversalOrder { Ordered, Unordered };
+
 // Closest hit in object space. ray.tmax shrinks to the hit distance.
-bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit);
+bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit,
+                    TraversalOrder order = TraversalOrder::Ordered);
 // Any hit before tmax.
 bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax);
+
+// SAH cost (relative to the root area) of the binary tree the mesh's BVH4 was
+// collapsed from, computed at build time with the build options' costs.
+float mesh_sah_cost(const Mesh& mesh);
 
 }  // namespace tessera

@@ -9,6 +9,7 @@ namespace tessera {
 
 struct TraversalRay {
   vec3 o, d, inv_d;
+  vec3 o_lo, o_hi;  // origins for the lo / hi planes of the slab test (see aabb.h)
   float tmax;
   explicit TraversalRay(const vec3& origin, const vec3& dir, float t_max) : o(origin), d(dir), tmax(t_max) {
     // A zero component would give 0 * inf = NaN in the slab test; a tiny
@@ -16,6 +17,9 @@ struct TraversalRay {
     for (int i = 0; i < 3; ++i) {
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       inv_d[i] = 1.0f / di;
+      const float delta = parallel_axis_delta(o[i], d[i]);
+      o_lo[i] = o[i] + delta;
+      o_hi[i] = o[i] - delta;
     }
   }
 };
@@ -30,7 +34,7 @@ inline bool traverse(const BVHNode* nodes, TraversalRay& ray, LeafFn&& intersect
   int sp = 0;
   uint32_t index = 0;
   bool hit = false;
-  if (intersect_box(nodes[0].lo, nodes[0].hi, ray.o, ray.inv_d, ray.tmax) == kInf) return false;
+  if (intersect_box(nodes[0].lo, nodes[0].hi, ray.o_lo, ray.o_hi, ray.inv_d, ray.tmax) == kInf) return false;
   for (;;) {
     const BVHNode& node = nodes[index];
     if (node.is_leaf()) {
@@ -40,8 +44,8 @@ inline bool traverse(const BVHNode* nodes, TraversalRay& ray, LeafFn&& intersect
       }
     } else {
       uint32_t a = node.first, b = node.first + 1;
-      float ta = intersect_box(nodes[a].lo, nodes[a].hi, ray.o, ray.inv_d, ray.tmax);
-      float tb = intersect_box(nodes[b].lo, nodes[b].hi, ray.o, ray.inv_d, ray.tmax);
+      float ta = intersect_box(nodes[a].lo, nodes[a].hi, ray.o_lo, ray.o_hi, ray.inv_d, ray.tmax);
+      float tb = intersect_box(nodes[b].lo, nodes[b].hi, ray.o_lo, ray.o_hi, ray.inv_d, ray.tmax);
       if (kOrdered && tb < ta) {
         std::swap(ta, tb);
         std::swap(a, b);

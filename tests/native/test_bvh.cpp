@@ -43,12 +43,11 @@ Mesh make_mesh(const TriangleSoup& s, const BuildOptions& opt = {}) {
   return build_mesh(in, opt);
 }
 
-void check_invariants(const Mesh& mesh, size_t num_triangles) {
-  const BVH& bvh = mesh.bvh;
+// Binary tree from build_bvh: every valid box in exactly one leaf, children inside parents.
+void check_binary_invariants(const BVH& bvh, const std::vector<AABB>& boxes) {
   ASSERT_FALSE(bvh.nodes.empty());
-  std::vector<int> seen(num_triangles, 0);
+  std::vector<int> seen(boxes.size(), 0);
   std::vector<uint32_t> stack{0};
-  size_t leaves_total = 0;
   while (!stack.empty()) {
     uint32_t i = stack.back();
     stack.pop_back();
@@ -56,13 +55,8 @@ void check_invariants(const Mesh& mesh, size_t num_triangles) {
     AABB box{n.lo, n.hi};
     if (n.is_leaf()) {
       for (uint32_t k = n.first; k < n.first + n.count; ++k) {
-        seen[mesh.prim_ids[k]]++;
-        ++leaves_total;
-        for (int j = 0; j < 3; ++j) {
-          const vec3& p = mesh.tri_verts[3 * k + j];
-          ASSERT_TRUE(glm::all(glm::lessThanEqual(box.lo, p)) && glm::all(glm::lessThanEqual(p, box.hi)))
-              << "triangle outside its leaf box";
-        }
+        seen[bvh.prim_order[k]]++;
+        ASSERT_TRUE(box.contains(boxes[bvh.prim_order[k]])) << "primitive outside its leaf box";
       }
     } else {
       for (uint32_t c : {n.first, n.first + 1}) {
@@ -70,6 +64,60 @@ void check_invariants(const Mesh& mesh, size_t num_triangles) {
         ASSERT_TRUE(box.contains(AABB{bvh.nodes[c].lo, bvh.nodes[c].hi})) << "child box not inside its parent";
         stack.push_back(c);
       }
+    }
+  }
+  for (size_t t = 0; t < boxes.size(); ++t) ASSERT_EQ(seen[t], boxes[t].empty() ? 0 : 1) << "primitive " << t;
+}
+
+// Mesh BVH4: each triangle in exactly one leaf, a leaf is a contiguous range of
+// tri_verts, the Tri4 lanes hold exactly those vertices, boxes nest.
+void check_invariants(const Mesh& mesh, size_t num_triangles) {
+  const BVH4& bvh = mesh.bvh;
+  ASSERT_FALSE(bvh.nodes.empty());
+  ASSERT_EQ(mesh.tri_verts.size(), 3 * mesh.prim_ids.size());
+  std::vector<int> seen(num_triangles, 0);
+  std::vector<std::pair<uint32_t, AABB>> stack{{0u, bvh.bounds}};
+  size_t leaves_total = 0;
+  while (!stack.empty()) {
+    auto [i, parent] = stack.back();
+    stack.pop_back();
+    ASSERT_LT(i, bvh.nodes.size());
+    const BVH4Node& n = bvh.nodes[i];
+    ASSERT_GE(n.num_children, 1u);
+    ASSERT_LE(n.num_children, 4u);
+    for (uint32_t c = 0; c < 4; ++c) {
+      if (c >= n.num_children) {
+        ASSERT_EQ(n.child[c], kBVH4EmptyChild);
+        continue;
+      }
+      AABB box{vec3(n.box[0][c], n.box[2][c], n.box[4][c]), vec3(n.box[1][c], n.box[3][c], n.box[5][c])};
+      ASSERT_TRUE(parent.contains(box)) << "child box not inside its parent";
+      const uint32_t ref = n.child[c];
+      if (!bvh4_is_leaf(ref)) {
+        stack.push_back({ref, box});
+        continue;
+      }
+      uint32_t lo = ~0u, hi = 0;
+      std::vector<uint32_t> ks;
+      for (uint32_t b = bvh4_leaf_first(ref); b < bvh4_leaf_first(ref) + bvh4_leaf_blocks(ref); ++b) {
+        ASSERT_LT(b, bvh.tris.size());
+        const Tri4& t = bvh.tris[b];
+        for (int lane = 0; lane < 4; ++lane) {
+          const uint32_t k = t.prim[lane];
+          ASSERT_LT(k, mesh.prim_ids.size());
+          for (int j = 0; j < 3; ++j) {
+            const vec3& p = mesh.tri_verts[3 * k + j];
+            ASSERT_EQ(vec3(t.v[j][0][lane], t.v[j][1][lane], t.v[j][2][lane]), p);
+            ASSERT_TRUE(glm::all(glm::lessThanEqual(box.lo, p)) && glm::all(glm::lessThanEqual(p, box.hi)))
+                << "triangle outside its leaf box";
+          }
+          if (ks.empty() || ks.back() != k) ks.push_back(k);
+          lo = std::min(lo, k), hi = std::max(hi, k);
+        }
+      }
+      ASSERT_EQ(size_t(hi - lo + 1), ks.size()) << "leaf is not one contiguous range";
+      for (uint32_t k : ks) seen[mesh.prim_ids[k]]++;
+      leaves_total += ks.size();
     }
   }
   EXPECT_EQ(leaves_total, num_triangles);
@@ -106,7 +154,12 @@ void check_against_brute_force(const Mesh& mesh, size_t n, uint32_t seed) {
     float tmax = kInf;
     MeshHit h;
     bool found = intersect_mesh(mesh, o, d, tmax, h);
-    bool ok = found == (ref.prim != ~0u) && (!found || (h.t == ref.t));
+    bool ok = found == (ref.prim != ~0u) && (!found || (h.t == ref.t && tmax == h.t));
+    // Stored-order traversal finds the same closest distance.
+    float tmax_u = kInf;
+    MeshHit hu;
+    bool found_u = intersect_mesh(mesh, o, d, tmax_u, hu, TraversalOrder::Unordered);
+    ok = ok && found_u == found && (!found || hu.t == ref.t);
     if (found) ++hits;
     // Any hit agrees with closest hit, also with a range that ends before the hit.
     ok = ok && occluded_mesh(mesh, o, d, kInf) == found;
@@ -118,6 +171,29 @@ void check_against_brute_force(const Mesh& mesh, size_t n, uint32_t seed) {
 }
 
 }  // namespace
+
+TEST(BVH, BinaryBuildersInvariants) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<AABB> boxes(3000);
+  for (AABB& b : boxes) {
+    vec3 c(u(rng), u(rng), u(rng));
+    b.grow(c - 0.05f * vec3(std::abs(u(rng)), std::abs(u(rng)), std::abs(u(rng))));
+    b.grow(c + 0.05f * vec3(std::abs(u(rng)), std::abs(u(rng)), std::abs(u(rng))));
+  }
+  boxes[17] = AABB{};  // empty boxes stay out of the tree
+  for (SplitMethod m : {SplitMethod::BinnedSAH, SplitMethod::SweepSAH, SplitMethod::Midpoint}) {
+    for (int block : {1, 4}) {
+      BuildOptions opt;
+      opt.method = m;
+      opt.sah_block_size = block;
+      BVH bvh = build_bvh(boxes, opt);
+      check_binary_invariants(bvh, boxes);
+      EXPECT_EQ(bvh.prim_order.size(), boxes.size() - 1);
+      EXPECT_GT(sah_cost(bvh), 0.0f);
+    }
+  }
+}
 
 TEST(BVH, InvariantsOnRandomTriangles) {
   for (SplitMethod m : {SplitMethod::BinnedSAH, SplitMethod::SweepSAH, SplitMethod::Midpoint}) {
@@ -137,11 +213,26 @@ TEST(BVH, MillionRandomRaysMatchBruteForce) {
 }
 
 TEST(BVH, EveryBuilderMatchesBruteForce) {
-  for (SplitMethod m : {SplitMethod::SweepSAH, SplitMethod::Midpoint}) {
-    BuildOptions opt;
-    opt.method = m;
-    Mesh mesh = make_mesh(random_soup(1000, 3), opt);
-    check_against_brute_force(mesh, 20000, 2);
+  for (SplitMethod m : {SplitMethod::SweepSAH, SplitMethod::Midpoint, SplitMethod::BinnedSAH}) {
+    for (int leaf : {1, 3, 8, 32}) {
+      BuildOptions opt;
+      opt.method = m;
+      opt.max_leaf_size = leaf;
+      opt.bins = leaf == 3 ? 4 : 32;
+      TriangleSoup s = random_soup(1000, 3);
+      Mesh mesh = make_mesh(s, opt);
+      check_invariants(mesh, s.num_triangles());
+      check_against_brute_force(mesh, 20000, 2);
+    }
+  }
+}
+
+TEST(BVH, SingleTriangleAndTinyMeshes) {
+  for (size_t n : {1, 2, 3, 4, 5, 9}) {
+    TriangleSoup s = random_soup(n, 21 + uint32_t(n), 0.5f);
+    Mesh mesh = make_mesh(s);
+    check_invariants(mesh, n);
+    check_against_brute_force(mesh, 5000, 4);
   }
 }
 
@@ -156,7 +247,7 @@ TEST(BVH, BinnedSAHIsCloseToFullSweep) {
   TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
   BuildOptions binned, sweep;
   sweep.method = SplitMethod::SweepSAH;
-  float cb = sah_cost(make_mesh(s, binned).bvh), cs = sah_cost(make_mesh(s, sweep).bvh);
+  float cb = mesh_sah_cost(make_mesh(s, binned)), cs = mesh_sah_cost(make_mesh(s, sweep));
   EXPECT_LT(cb, cs * 1.05f) << "binned SAH cost " << cb << " vs sweep " << cs;
 }
 
@@ -178,6 +269,7 @@ TEST(BVH, IdenticalTrianglesStayWithinTraversalDepth) {
   for (int i = 0; i < 100000; ++i) s.indices.insert(s.indices.end(), {0, 1, 2});
   Mesh mesh = make_mesh(s);
   EXPECT_LE(mesh.bvh.depth(), 64);
+  check_invariants(mesh, s.num_triangles());
   float tmax = kInf;
   MeshHit h;
   EXPECT_TRUE(intersect_mesh(mesh, vec3(0.2f, 0.2f, 1), vec3(0, 0, -1), tmax, h));

@@ -1,0 +1,73 @@
+// Four-wide BVH for triangle meshes (the BLAS), collapsed from the binary SAH
+// tree, with SSE box tests for the four children at once and triangles stored
+// four at a time (structure of arrays) for a SIMD version of the watertight
+// test in triangle.h. Every lane does exactly the float operations of the
+// scalar intersect_triangle, in the same order, so the results are bit for
+// bit those of the scalar test: watertightness carries over unchanged.
+#pragma once
+#include <emmintrin.h>
+
+#include <vector>
+
+#include "bvh.h"
+#include "triangle.h"
+
+namespace tessera {
+
+// 128 bytes, two cache lines. Child boxes per axis as [lo x4][hi x4]; an
+// unused child has an inverted box (lo = +inf, hi = -inf), which no ray hits.
+struct alignas(64) BVH4Node {
+  float box[6][4];      // lo_x, hi_x, lo_y, hi_y, lo_z, hi_z; one lane per child
+  uint32_t child[4];    // interior: node index; leaf: kLeafBit | first block << 3 | (blocks - 1)
+  uint32_t num_children;
+  uint32_t pad[3];
+};
+static_assert(sizeof(BVH4Node) == 128, "BVH4Node must stay 128 bytes");
+
+constexpr uint32_t kBVH4LeafBit = 0x80000000u;
+constexpr uint32_t kBVH4EmptyChild = 0xFFFFFFFFu;
+constexpr uint32_t kBVH4MaxLeafBlocks = 8;
+inline bool bvh4_is_leaf(uint32_t ref) { return ref & kBVH4LeafBit; }
+inline uint32_t bvh4_leaf_first(uint32_t ref) { return (ref & ~kBVH4LeafBit) >> 3; }
+inline uint32_t bvh4_leaf_blocks(uint32_t ref) { return (ref & 7u) + 1; }
+
+// Four triangles of one leaf: v[vertex][axis][lane]. A leaf whose size is not a
+// multiple of four repeats its last triangle in the spare lanes.
+struct alignas(16) Tri4 {
+  float v[3][3][4];
+  uint32_t prim[4];  // leaf-order triangle index (Mesh::tri_verts / prim_ids)
+};
+static_assert(sizeof(Tri4) == 160, "Tri4 must stay 160 bytes");
+
+struct BVH4 {
+  std::vector<BVH4Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
+  std::vector<Tri4> tris;
+  AABB bounds;
+  float sah_cost = 0.0f;  // of the binary tree it was collapsed from
+
+  bool empty() const { return nodes.empty(); }
+  size_t memory_bytes() const { return nodes.capacity() * sizeof(BVH4Node) + tris.capacity() * sizeof(Tri4); }
+  int depth() const;
+};
+
+// Collapses a binary BVH whose leaves index triangles in leaf order
+// (tri_verts: 3 per triangle, that order) into a BVH4: each node takes the
+// children of its largest-area descendants until it has four.
+BVH4 collapse_to_bvh4(const BVH& binary, const vec3* tri_verts);
+
+// SAH cost of a BVH4 (one traversal step per node visit, one per Tri4 block),
+// relative to the root area.
+float sah_cost(const BVH4& bvh, const BuildOptions& options = {});
+
+struct BVH4Hit {
+  float t, u, v;
+  uint32_t prim;
+};
+
+// Closest hit before tmax (tmax shrinks); kOrdered visits children nearest first.
+template <bool kOrdered>
+bool bvh4_intersect(const BVH4& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit);
+// Any hit before tmax.
+bool bvh4_occluded(const BVH4& bvh, const vec3& o, const vec3& d, float tmax);
+
+}  // namespace tessera

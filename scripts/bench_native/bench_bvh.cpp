@@ -1,0 +1,463 @@
+// Side-by-side benchmark of Tessera's BVH (build + single-ray traversal)
+// against Embree 3 (RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 / rtcOccluded1).
+//
+//   bench_bvh [--mode compare|builders|all] [--runs N] [--res R] [--threads 1,2]
+//             [--bins 4,8,16,32,64] [--builder-threads T] [--builder-meshes a,b] mesh files...
+//
+// Both engines trace exactly the same ray arrays, chunked over TBB
+// parallel_for inside a task_arena of the given thread count. Every figure is
+// the median of --runs repetitions in one process.
+#include <embree3/rtcore.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/mesh.h"
+#include "io/mesh_file.h"
+
+using namespace tessera;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+// Small deterministic per-ray random numbers (PCG hash), so ray generation
+// does not depend on thread scheduling.
+struct Rng {
+  uint64_t s;
+  explicit Rng(uint64_t seed) : s(seed * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull) {}
+  float next() {
+    s = s * 6364136223846793005ull + 1442695040888963407ull;
+    uint32_t x = uint32_t(((s >> 18u) ^ s) >> 27u);
+    uint32_t rot = uint32_t(s >> 59u);
+    x = (x >> rot) | (x << ((32 - rot) & 31));
+    return float(x >> 8) * (1.0f / 16777216.0f);
+  }
+};
+
+struct RayArray {
+  std::string kind;
+  bool shadow = false;
+  std::vector<vec3> o, d;
+  std::vector<float> tmax;
+  size_t size() const { return o.size(); }
+  void push(const vec3& org, const vec3& dir, float t) {
+    o.push_back(org);
+    d.push_back(dir);
+    tmax.push_back(t);
+  }
+};
+
+struct Results {
+  std::vector<float> t;  // hit distance, kInf on a miss (shadow: 0 occluded / kInf clear)
+};
+
+// ---------------------------------------------------------------- Embree
+
+struct EmbreeScene {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  ~EmbreeScene() { release(); }
+  void release() {
+    if (scene) rtcReleaseScene(scene);
+    scene = nullptr;
+  }
+};
+
+void embree_build(RTCDevice device, const TriangleSoup& s, EmbreeScene& es) {
+  es.release();
+  es.scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(es.scene, RTC_BUILD_QUALITY_MEDIUM);
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_MEDIUM);
+  const size_t nv = s.positions.size() / 3;
+  float* v = static_cast<float*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
+  std::memcpy(v, s.positions.data(), nv * 3 * sizeof(float));
+  uint32_t* idx = static_cast<uint32_t*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), s.num_triangles()));
+  std::memcpy(idx, s.indices.data(), s.indices.size() * sizeof(uint32_t));
+  rtcCommitGeometry(g);
+  rtcAttachGeometry(es.scene, g);
+  rtcReleaseGeometry(g);
+  rtcCommitScene(es.scene);
+}
+
+void embree_trace(RTCScene scene, const RayArray& rays, size_t begin, size_t end, Results& out) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (size_t i = begin; i < end; ++i) {
+    if (rays.shadow) {
+      RTCRay r;
+      r.org_x = rays.o[i].x; r.org_y = rays.o[i].y; r.org_z = rays.o[i].z;
+      r.dir_x = rays.d[i].x; r.dir_y = rays.d[i].y; r.dir_z = rays.d[i].z;
+      r.tnear = 0.0f;
+      r.tfar = rays.tmax[i];
+      r.time = 0.0f;
+      r.mask = ~0u;
+      r.id = 0;
+      r.flags = 0;
+      rtcOccluded1(scene, &ctx, &r);
+      out.t[i] = r.tfar < 0.0f ? 0.0f : kInf;
+    } else {
+      RTCRayHit rh;
+      RTCRay& r = rh.ray;
+      r.org_x = rays.o[i].x; r.org_y = rays.o[i].y; r.org_z = rays.o[i].z;
+      r.dir_x = rays.d[i].x; r.dir_y = rays.d[i].y; r.dir_z = rays.d[i].z;
+      r.tnear = 0.0f;
+      r.tfar = rays.tmax[i];
+      r.time = 0.0f;
+      r.mask = ~0u;
+      r.id = 0;
+      r.flags = 0;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(scene, &ctx, &rh);
+      out.t[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? r.tfar : kInf;
+    }
+  }
+}
+
+// ---------------------------------------------------------------- Tessera
+
+Mesh tessera_build(const TriangleSoup& s, const BuildOptions& opt) {
+  MeshInput in;
+  in.positions = s.positions.data();
+  in.num_vertices = s.positions.size() / 3;
+  in.indices = s.indices.data();
+  in.num_triangles = s.num_triangles();
+  return build_mesh(in, opt);
+}
+
+void tessera_trace(const Mesh& mesh, const RayArray& rays, size_t begin, size_t end, Results& out,
+                   TraversalOrder order, std::vector<uint32_t>* prims = nullptr) {
+  for (size_t i = begin; i < end; ++i) {
+    if (rays.shadow) {
+      out.t[i] = occluded_mesh(mesh, rays.o[i], rays.d[i], rays.tmax[i]) ? 0.0f : kInf;
+    } else {
+      float tmax = rays.tmax[i];
+      MeshHit h;
+      bool hit = intersect_mesh(mesh, rays.o[i], rays.d[i], tmax, h, order);
+      out.t[i] = hit ? h.t : kInf;
+      if (prims) (*prims)[i] = hit ? h.prim : ~0u;
+    }
+  }
+}
+
+// Runs fn over the rays in chunks on `threads` threads; returns seconds.
+constexpr size_t kChunk = 256;
+double run_parallel(int threads, size_t n, const std::function<void(size_t, size_t)>& fn) {
+  tbb::task_arena arena(threads);
+  double secs = 0.0;
+  arena.execute([&] {
+    auto t0 = Clock::now();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kChunk),
+                      [&](const tbb::blocked_range<size_t>& r) { fn(r.begin(), r.end()); });
+    secs = seconds_since(t0);
+  });
+  return secs;
+}
+
+// ---------------------------------------------------------------- rays
+
+struct RaySets {
+  std::vector<RayArray> sets;  // primary, diffuse, random, shadow
+};
+
+RaySets make_rays(const Mesh& mesh, int res) {
+  RaySets rs;
+  const AABB b = mesh.bounds();
+  const vec3 c = b.center();
+  const float radius = 0.5f * glm::length(b.extent());
+  // Pinhole camera outside the mesh, 45 degree field of view, looking at the centre.
+  const float fov = 45.0f * kPi / 180.0f;
+  const vec3 view_dir = glm::normalize(vec3(-0.35f, -0.25f, -1.0f));
+  const vec3 eye = c - view_dir * (radius / std::sin(0.5f * fov) * 1.05f);
+  const vec3 right = glm::normalize(glm::cross(view_dir, vec3(0, 1, 0)));
+  const vec3 up = glm::cross(right, view_dir);
+  const float tan_half = std::tan(0.5f * fov);
+  RayArray primary;
+  primary.kind = "primary";
+  for (int y = 0; y < res; ++y)
+    for (int x = 0; x < res; ++x) {
+      float px = (2.0f * (x + 0.5f) / res - 1.0f) * tan_half;
+      float py = (1.0f - 2.0f * (y + 0.5f) / res) * tan_half;
+      primary.push(eye, glm::normalize(view_dir + px * right + py * up), kInf);
+    }
+  // Reference primary hits (Tessera, closest hit) to spawn secondary rays.
+  Results ref;
+  ref.t.resize(primary.size());
+  std::vector<uint32_t> prims(primary.size());
+  tessera_trace(mesh, primary, 0, primary.size(), ref, TraversalOrder::Ordered, &prims);
+
+  RayArray diffuse, shadow, random;
+  diffuse.kind = "diffuse";
+  shadow.kind = "shadow";
+  shadow.shadow = true;
+  random.kind = "random";
+  const vec3 light = c + radius * vec3(1.5f, 3.0f, 2.0f);
+  const float eps = 1e-4f * radius;
+  for (size_t i = 0; i < primary.size(); ++i) {
+    if (ref.t[i] == kInf) continue;
+    const vec3* v = &mesh.tri_verts[3 * size_t(prims[i])];
+    vec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
+    float len = glm::length(n);
+    if (!(len > 0.0f)) continue;
+    n /= len;
+    if (glm::dot(n, primary.d[i]) > 0.0f) n = -n;
+    const vec3 p = primary.o[i] + ref.t[i] * primary.d[i] + eps * n;
+    Rng rng(i * 7919 + 17);
+    float r1 = rng.next(), r2 = rng.next();
+    float r = std::sqrt(r1), phi = 2.0f * kPi * r2;
+    Frame f(n);
+    diffuse.push(p, glm::normalize(f.to_world(vec3(r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0f - r1)))), kInf);
+    vec3 to_light = light - p;
+    float dist = glm::length(to_light);
+    shadow.push(p, to_light / dist, dist * (1.0f - 1e-4f));
+  }
+  const size_t num_random = size_t(res) * size_t(res);
+  for (size_t i = 0; i < num_random; ++i) {
+    Rng rng(i * 104729 + 3);
+    vec3 o = c + (b.extent() * 1.2f) * vec3(rng.next() - 0.5f, rng.next() - 0.5f, rng.next() - 0.5f);
+    float z = 2.0f * rng.next() - 1.0f, phi = 2.0f * kPi * rng.next();
+    float s = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    random.push(o, vec3(s * std::cos(phi), s * std::sin(phi), z), kInf);
+  }
+  rs.sets.push_back(std::move(primary));
+  rs.sets.push_back(std::move(diffuse));
+  rs.sets.push_back(std::move(random));
+  rs.sets.push_back(std::move(shadow));
+  return rs;
+}
+
+// Fraction of rays where both engines agree: same hit/miss and, for hits,
+// distances within 1e-4 relative.
+double agreement(const Results& a, const Results& b, size_t* disagree) {
+  size_t bad = 0;
+  for (size_t i = 0; i < a.t.size(); ++i) {
+    float ta = a.t[i], tb = b.t[i];
+    bool ha = ta != kInf, hb = tb != kInf;
+    if (ha != hb) ++bad;
+    else if (ha && std::abs(ta - tb) > 1e-4f * std::max(std::abs(ta), std::abs(tb))) ++bad;
+  }
+  *disagree = bad;
+  return a.t.empty() ? 1.0 : 1.0 - double(bad) / double(a.t.size());
+}
+
+std::string basename_of(const std::string& p) {
+  size_t s = p.find_last_of('/');
+  return s == std::string::npos ? p : p.substr(s + 1);
+}
+
+std::vector<int> parse_ints(const std::string& s) {
+  std::vector<int> out;
+  std::stringstream ss(s);
+  std::string tok;
+  while (std::getline(ss, tok, ',')) out.push_back(std::stoi(tok));
+  return out;
+}
+
+struct Config {
+  std::string mode = "compare";
+  int runs = 5;
+  int res = 1024;
+  std::vector<int> threads{1, 2};
+  std::vector<int> bins{4, 8, 16, 32, 64};
+  int builder_threads = 1;
+  std::vector<std::string> meshes;
+  std::vector<std::string> builder_meshes;  // empty: all
+};
+
+// ---------------------------------------------------------------- modes
+
+void compare(const Config& cfg) {
+  std::printf("## Tessera vs Embree\n\n");
+  std::printf("Build: median wall time of %d builds (Tessera: `build_mesh`, default options; Embree: scene + geometry "
+              "setup and `rtcCommitScene`, RTC_BUILD_QUALITY_MEDIUM). Build ratio = Embree time / Tessera time "
+              "(> 1: Tessera faster). SAH cost: Tessera's tree as traversed, relative to the root box area "
+              "(traversal cost 1, triangle cost 1).\n\n",
+              cfg.runs);
+  std::string build_table =
+      "| mesh | triangles | threads | Tessera build ms | Embree build ms | ratio | Tessera SAH cost |\n"
+      "|---|---:|---:|---:|---:|---:|---:|\n";
+  std::string trace_table =
+      "| mesh | ray kind | rays | threads | Tessera Mrays/s | Embree Mrays/s | ratio | agreement |\n"
+      "|---|---|---:|---:|---:|---:|---:|---:|\n";
+  char line[512];
+  for (const std::string& path : cfg.meshes) {
+    TriangleSoup soup = load_mesh_file(path);
+    const std::string name = basename_of(path);
+    Mesh mesh;
+    std::vector<EmbreeScene> escenes(cfg.threads.size());
+    std::vector<RTCDevice> devices;
+    for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
+      const int nt = cfg.threads[ti];
+      std::string conf = "threads=" + std::to_string(nt);
+      RTCDevice dev = rtcNewDevice(conf.c_str());
+      devices.push_back(dev);
+      tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
+      tbb::task_arena arena(nt);
+      std::vector<double> tt, te;
+      arena.execute([&] {
+        for (int r = 0; r < cfg.runs; ++r) {
+          auto t0 = Clock::now();
+          mesh = tessera_build(soup, BuildOptions{});
+          tt.push_back(seconds_since(t0));
+          t0 = Clock::now();
+          embree_build(dev, soup, escenes[ti]);
+          te.push_back(seconds_since(t0));
+        }
+      });
+      std::snprintf(line, sizeof line, "| %s | %zu | %d | %.1f | %.1f | %.2f | %.2f |\n", name.c_str(),
+                    soup.num_triangles(), nt, 1e3 * median(tt), 1e3 * median(te), median(te) / median(tt),
+                    mesh_sah_cost(mesh));
+      build_table += line;
+      std::fprintf(stderr, "%s", line);
+    }
+    RaySets rs = make_rays(mesh, cfg.res);
+    for (const RayArray& rays : rs.sets) {
+      for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
+        const int nt = cfg.threads[ti];
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
+        Results rt, re;
+        rt.t.assign(rays.size(), -1.0f);
+        re.t.assign(rays.size(), -1.0f);
+        RTCScene es = escenes[ti].scene;
+        std::vector<double> st, se;
+        for (int r = 0; r < cfg.runs; ++r) {
+          st.push_back(run_parallel(nt, rays.size(), [&](size_t b, size_t e) {
+            tessera_trace(mesh, rays, b, e, rt, TraversalOrder::Ordered);
+          }));
+          se.push_back(run_parallel(nt, rays.size(), [&](size_t b, size_t e) { embree_trace(es, rays, b, e, re); }));
+        }
+        size_t bad = 0;
+        double agree = agreement(rt, re, &bad);
+        double mt = rays.size() / median(st) * 1e-6, me = rays.size() / median(se) * 1e-6;
+        std::snprintf(line, sizeof line, "| %s | %s | %zu | %d | %.2f | %.2f | %.2f | %.4f%% (%zu differ) |\n",
+                      name.c_str(), rays.kind.c_str(), rays.size(), nt, mt, me, mt / me, 100.0 * agree, bad);
+        trace_table += line;
+        std::fprintf(stderr, "%s", line);
+      }
+    }
+    escenes.clear();
+    for (RTCDevice d : devices) rtcReleaseDevice(d);
+  }
+  std::printf("### Build\n\n%s\n### Traversal\n\nMrays/s = rays / median wall time of %d passes over the whole ray "
+              "array. Ratio = Tessera / Embree (>= 1: Tessera as fast or faster). Agreement: same hit/miss and, for "
+              "hits, distance within 1e-4 relative.\n\n%s\n",
+              build_table.c_str(), cfg.runs, trace_table.c_str());
+  std::fflush(stdout);
+}
+
+void builders(const Config& cfg) {
+  const int nt = cfg.builder_threads;
+  std::printf("## Tessera builders and traversal order\n\n");
+  std::printf("Threads: %d. Medians of %d runs. Throughput in Mrays/s (closest hit for primary / diffuse / random, "
+              "any hit for shadow). Sweep = full-sweep SAH (sorts every axis at every node).\n\n",
+              nt, cfg.runs);
+  std::printf("| mesh | builder | traversal | build ms | SAH cost | primary | diffuse | random | shadow |\n"
+              "|---|---|---|---:|---:|---:|---:|---:|---:|\n");
+  std::fflush(stdout);
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
+  for (const std::string& path : cfg.meshes) {
+    const std::string name = basename_of(path);
+    if (!cfg.builder_meshes.empty() &&
+        std::find(cfg.builder_meshes.begin(), cfg.builder_meshes.end(), name) == cfg.builder_meshes.end())
+      continue;
+    TriangleSoup soup = load_mesh_file(path);
+    RaySets rs = make_rays(tessera_build(soup, BuildOptions{}), cfg.res);
+    struct Variant { std::string label; BuildOptions opt; };
+    std::vector<Variant> variants;
+    { BuildOptions o; o.method = SplitMethod::Midpoint; variants.push_back({"midpoint", o}); }
+    { BuildOptions o; o.method = SplitMethod::SweepSAH; variants.push_back({"sweep SAH", o}); }
+    for (int bins : cfg.bins) {
+      BuildOptions o;
+      o.method = SplitMethod::BinnedSAH;
+      o.bins = bins;
+      variants.push_back({"binned SAH, " + std::to_string(bins) + " bins", o});
+    }
+    for (const Variant& v : variants) {
+      Mesh mesh;
+      std::vector<double> tb;
+      tbb::task_arena arena(nt);
+      arena.execute([&] {
+        for (int r = 0; r < cfg.runs; ++r) {
+          auto t0 = Clock::now();
+          mesh = tessera_build(soup, v.opt);
+          tb.push_back(seconds_since(t0));
+        }
+      });
+      for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+        std::string cells;
+        for (const RayArray& rays : rs.sets) {
+          Results rt;
+          rt.t.resize(rays.size());
+          std::vector<double> st;
+          for (int r = 0; r < cfg.runs; ++r)
+            st.push_back(run_parallel(nt, rays.size(),
+                                      [&](size_t b, size_t e) { tessera_trace(mesh, rays, b, e, rt, order); }));
+          char c[32];
+          std::snprintf(c, sizeof c, " %.2f |", rays.size() / median(st) * 1e-6);
+          cells += c;
+        }
+        std::printf("| %s | %s | %s | %.1f | %.2f |%s\n", name.c_str(), v.label.c_str(),
+                    order == TraversalOrder::Ordered ? "ordered" : "unordered", 1e3 * median(tb),
+                    mesh_sah_cost(mesh), cells.c_str());
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::printf("\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Config cfg;
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) throw std::runtime_error("missing value after " + a);
+      return argv[++i];
+    };
+    if (a == "--mode") cfg.mode = next();
+    else if (a == "--runs") cfg.runs = std::stoi(next());
+    else if (a == "--res") cfg.res = std::stoi(next());
+    else if (a == "--threads") cfg.threads = parse_ints(next());
+    else if (a == "--bins") cfg.bins = parse_ints(next());
+    else if (a == "--builder-threads") cfg.builder_threads = std::stoi(next());
+    else if (a == "--builder-meshes") {
+      std::stringstream ss(next());
+      std::string tok;
+      while (std::getline(ss, tok, ',')) cfg.builder_meshes.push_back(tok);
+    } else if (a.rfind("--", 0) == 0) {
+      std::fprintf(stderr, "unknown option %s\n", a.c_str());
+      return 2;
+    } else cfg.meshes.push_back(a);
+  }
+  if (cfg.meshes.empty()) {
+    std::fprintf(stderr, "usage: bench_bvh [--mode compare|builders|all] [--runs N] [--res R] [--threads 1,2] "
+                         "[--bins 4,8,16] [--builder-threads T] [--builder-meshes a.obj,b.ply] mesh...\n");
+    return 2;
+  }
+  if (cfg.mode == "compare" || cfg.mode == "all") compare(cfg);
+  if (cfg.mode == "builders" || cfg.mode == "all") builders(cfg);
+  return 0;
+}
