@@ -8,5 +8,9 @@ BUILD_DIR=${BUILD_DIR:-build}
 PYTHON=${TESSERA_PYTHON:-/usr/bin/python3}
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DPYTHON_EXECUTABLE="$PYTHON" ${CMAKE_ARGS:-} >/dev/null
 cmake --build "$BUILD_DIR" -j"$(nproc)"
-cp -f "$BUILD_DIR"/_core*.so addon/tessera/
+# Copy then rename: a Blender that has the old module loaded keeps its file.
+for so in "$BUILD_DIR"/_core*.so; do
+  cp -f "$so" "addon/tessera/.$(basename "$so").tmp"
+  mv -f "addon/tessera/.$(basename "$so").tmp" "addon/tessera/$(basename "$so")"
+done
 echo "tessera build: $(ls addon/tessera/_core*.so)"
