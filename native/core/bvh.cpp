@@ -2,6 +2,10 @@
 
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/parallel_for.h>
+#include <tbb/combinable.h>
+#include <emmintrin.h>
+#include <cstring>
 
 #include <algorithm>
 #include <atomic>
@@ -172,9 +176,272 @@ struct Builder {
   }
 };
 
+
+// Binned SAH builder on a contiguous array of primitive references (Wald
+// 2007): one pass bins all three axes at once with SSE boxes, node bounds come
+// from the parent's split, and the partition computes the children's bounds
+// and centroid bounds on the way. Large ranges bin in parallel (TBB) and
+// subtrees build as parallel tasks.
+struct alignas(32) PrimRef {
+  __m128 lo;  // w: primitive index (bits; small indices are denormals, so the
+  __m128 hi;  // w lane is masked off before any arithmetic); hi.w = 0
+};
+
+inline __m128 xyz(__m128 v) { return _mm_and_ps(v, _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0))); }
+inline __m128 lo_of(const PrimRef& r) { return xyz(r.lo); }
+inline __m128 centroid2(const PrimRef& r) { return _mm_add_ps(xyz(r.lo), r.hi); }  // 2 x centroid
+
+struct SSEBox {
+  __m128 lo = _mm_set1_ps(kInf), hi = _mm_set1_ps(-kInf);
+  void grow(__m128 l, __m128 h) { lo = _mm_min_ps(lo, l); hi = _mm_max_ps(hi, h); }
+  void grow(const SSEBox& b) { grow(b.lo, b.hi); }
+  float half_area() const {
+    alignas(16) float e[4];
+    _mm_store_ps(e, _mm_sub_ps(hi, lo));
+    if (!(e[0] >= 0.0f)) return 0.0f;
+    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0];
+  }
+  AABB aabb() const {
+    alignas(16) float l[4], h[4];
+    _mm_store_ps(l, lo);
+    _mm_store_ps(h, hi);
+    return AABB{vec3(l[0], l[1], l[2]), vec3(h[0], h[1], h[2])};
+  }
+};
+
+constexpr int kMaxFastBins = 256;
+
+struct Bins {
+  int n = 0;
+  __m128 lo[3][kMaxFastBins], hi[3][kMaxFastBins];  // only the first n are initialised
+  uint32_t count[3][kMaxFastBins];
+  explicit Bins(int nb) : n(nb) {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < n; ++b) lo[a][b] = _mm_set1_ps(kInf), hi[a][b] = _mm_set1_ps(-kInf), count[a][b] = 0;
+  }
+  void grow(int a, int b, __m128 l, __m128 h) {
+    lo[a][b] = _mm_min_ps(lo[a][b], l);
+    hi[a][b] = _mm_max_ps(hi[a][b], h);
+    count[a][b]++;
+  }
+  SSEBox box(int a, int b) const {
+    SSEBox x;
+    x.lo = lo[a][b], x.hi = hi[a][b];
+    return x;
+  }
+  void merge(const Bins& o) {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < n; ++b) {
+        lo[a][b] = _mm_min_ps(lo[a][b], o.lo[a][b]);
+        hi[a][b] = _mm_max_ps(hi[a][b], o.hi[a][b]);
+        count[a][b] += o.count[a][b];
+      }
+  }
+};
+
+struct FastBuilder {
+  const BuildOptions& opt;
+  std::vector<PrimRef> refs;
+  std::vector<BVHNode> nodes;
+  std::atomic<uint32_t> node_count{1};
+  uint32_t block;
+  int nb;
+
+  FastBuilder(const BuildOptions& o)
+      : opt(o), block(uint32_t(std::max(1, o.sah_block_size))), nb(std::clamp(o.bins, 2, kMaxFastBins)) {}
+
+  float blocks(uint32_t n) const { return float((n + block - 1) / block); }
+
+  // Centroids are handled doubled (lo + hi) throughout.
+  void bin_range(Bins& bins, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
+    const __m128i maxb = _mm_set1_epi32(nb - 1);
+    for (uint32_t i = begin; i < end; ++i) {
+      const PrimRef& r = refs[i];
+      const __m128 c = centroid2(r);
+      __m128i b = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(c, cmin), scale));
+      // min(max(b, 0), nb - 1) with SSE2 compares
+      b = _mm_and_si128(b, _mm_cmpgt_epi32(b, _mm_setzero_si128()));
+      const __m128i gt = _mm_cmpgt_epi32(b, maxb);
+      b = _mm_or_si128(_mm_and_si128(gt, maxb), _mm_andnot_si128(gt, b));
+      alignas(16) int bi[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(bi), b);
+      const __m128 l = lo_of(r);
+      bins.grow(0, bi[0], l, r.hi);
+      bins.grow(1, bi[1], l, r.hi);
+      bins.grow(2, bi[2], l, r.hi);
+    }
+  }
+
+  Split find_split(uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out, __m128& scale_out) const {
+    Split best;
+    const __m128 cmin = _mm_add_ps(cbox.lo, cbox.lo);
+    const __m128 ext = _mm_sub_ps(_mm_add_ps(cbox.hi, cbox.hi), cmin);
+    alignas(16) float e[4];
+    _mm_store_ps(e, ext);
+    alignas(16) float sc[4];
+    for (int a = 0; a < 4; ++a) sc[a] = a < 3 && e[a] > 0.0f ? float(nb) * 0.99999f / e[a] : 0.0f;
+    const __m128 scale = _mm_load_ps(sc);
+    cmin_out = cmin;
+    scale_out = scale;
+    const uint32_t n = end - begin;
+    Bins bins(nb);
+    if (opt.parallel && n > 65536) {
+      tbb::combinable<Bins> local([&] { return Bins(nb); });
+      tbb::parallel_for(tbb::blocked_range<uint32_t>(begin, end, 16384), [&](const tbb::blocked_range<uint32_t>& r) {
+        bin_range(local.local(), r.begin(), r.end(), cmin, scale);
+      });
+      local.combine_each([&](const Bins& b) { bins.merge(b); });
+    } else {
+      bin_range(bins, begin, end, cmin, scale);
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!(e[axis] > 0.0f)) continue;
+      float right_area[kMaxFastBins];
+      uint32_t right_count[kMaxFastBins];
+      SSEBox acc;
+      uint32_t cnt = 0;
+      for (int b = nb - 1; b > 0; --b) {
+        acc.grow(bins.box(axis, b));
+        cnt += bins.count[axis][b];
+        right_area[b] = acc.half_area();
+        right_count[b] = cnt;
+      }
+      acc = SSEBox{};
+      cnt = 0;
+      for (int b = 0; b < nb - 1; ++b) {
+        acc.grow(bins.box(axis, b));
+        cnt += bins.count[axis][b];
+        if (cnt == 0 || right_count[b + 1] == 0) continue;
+        const float cost = acc.half_area() * blocks(cnt) + right_area[b + 1] * blocks(right_count[b + 1]);
+        if (cost < best.cost) best = {axis, 0.0f, uint32_t(b + 1), cost};  // index: first bin on the right
+      }
+    }
+    return best;
+  }
+
+  void make_leaf(BVHNode& node, uint32_t begin, uint32_t end) {
+    node.first = begin;
+    node.count = end - begin;
+  }
+
+  static constexpr int kMaxSAHDepth = 32;
+
+  void build(uint32_t node_index, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox, int depth) {
+    BVHNode& node = nodes[node_index];
+    const AABB b = box.aabb();
+    node.lo = b.lo;
+    node.hi = b.hi;
+    const uint32_t n = end - begin;
+    if (n <= 1) return make_leaf(node, begin, end);
+    uint32_t mid = begin;
+    SSEBox lbox, rbox, lcbox, rcbox;
+    bool have_boxes = false;
+    if (depth >= kMaxSAHDepth) {
+      if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, begin, end);
+    } else {
+      __m128 cmin, scale;
+      Split split = find_split(begin, end, cbox, cmin, scale);
+      const float leaf_cost = opt.intersection_cost * blocks(n);
+      const float split_cost =
+          split.axis < 0 ? kInf : opt.traversal_cost + opt.intersection_cost * split.cost / box.half_area();
+      if (n <= uint32_t(opt.max_leaf_size) && (leaf_cost <= split_cost || split.axis < 0))
+        return make_leaf(node, begin, end);
+      if (split.axis >= 0) {
+        alignas(16) float cm[4], sc[4];
+        _mm_store_ps(cm, cmin);
+        _mm_store_ps(sc, scale);
+        const int axis = split.axis;
+        const int pivot = int(split.index);
+        const int maxb = nb - 1;
+        auto left_of = [&](const PrimRef& r) {
+          alignas(16) float c[4];
+          _mm_store_ps(c, centroid2(r));
+          int bi = int((c[axis] - cm[axis]) * sc[axis]);
+          bi = std::min(std::max(bi, 0), maxb);
+          return bi < pivot;
+        };
+        // In-place partition, growing the children's boxes on the way.
+        uint32_t i = begin, j = end;
+        for (;;) {
+          while (i < j && left_of(refs[i])) {
+            lbox.grow(lo_of(refs[i]), refs[i].hi);
+            const __m128 c = _mm_mul_ps(centroid2(refs[i]), _mm_set1_ps(0.5f));
+            lcbox.grow(c, c);
+            ++i;
+          }
+          while (i < j && !left_of(refs[j - 1])) {
+            --j;
+            rbox.grow(lo_of(refs[j]), refs[j].hi);
+            const __m128 c = _mm_mul_ps(centroid2(refs[j]), _mm_set1_ps(0.5f));
+            rcbox.grow(c, c);
+          }
+          if (i >= j) break;
+          std::swap(refs[i], refs[j - 1]);
+        }
+        mid = i;
+        have_boxes = true;
+      }
+    }
+    if (mid == begin || mid == end) {  // inseparable centroids or no split: by count
+      mid = begin + n / 2;
+      have_boxes = false;
+    }
+    if (!have_boxes) {
+      lbox = rbox = lcbox = rcbox = SSEBox{};
+      for (uint32_t i = begin; i < end; ++i) {
+        const __m128 c = _mm_mul_ps(centroid2(refs[i]), _mm_set1_ps(0.5f));
+        if (i < mid) lbox.grow(lo_of(refs[i]), refs[i].hi), lcbox.grow(c, c);
+        else rbox.grow(lo_of(refs[i]), refs[i].hi), rcbox.grow(c, c);
+      }
+    }
+    const uint32_t left = node_count.fetch_add(2);
+    node.first = left;
+    node.count = 0;
+    if (opt.parallel && n > 4096) {
+      tbb::parallel_invoke([&] { build(left, begin, mid, lbox, lcbox, depth + 1); },
+                           [&] { build(left + 1, mid, end, rbox, rcbox, depth + 1); });
+    } else {
+      build(left, begin, mid, lbox, lcbox, depth + 1);
+      build(left + 1, mid, end, rbox, rcbox, depth + 1);
+    }
+  }
+};
+
+BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& options) {
+  FastBuilder b(options);
+  b.refs.reserve(prim_bounds.size());
+  SSEBox box, cbox;
+  for (uint32_t i = 0; i < prim_bounds.size(); ++i) {
+    const AABB& pb = prim_bounds[i];
+    if (pb.empty() || !is_finite(pb.lo) || !is_finite(pb.hi)) continue;
+    uint32_t bits = i;
+    float w;
+    std::memcpy(&w, &bits, 4);
+    PrimRef r{_mm_setr_ps(pb.lo.x, pb.lo.y, pb.lo.z, w), _mm_setr_ps(pb.hi.x, pb.hi.y, pb.hi.z, 0.0f)};
+    b.refs.push_back(r);
+    box.grow(lo_of(r), r.hi);
+    const __m128 c = _mm_mul_ps(centroid2(r), _mm_set1_ps(0.5f));
+    cbox.grow(c, c);
+  }
+  BVH bvh;
+  if (b.refs.empty()) return bvh;
+  b.nodes.resize(2 * b.refs.size());
+  b.build(0, 0, uint32_t(b.refs.size()), box, cbox, 0);
+  b.nodes.resize(b.node_count.load());
+  b.nodes.shrink_to_fit();
+  bvh.nodes = std::move(b.nodes);
+  bvh.prim_order.resize(b.refs.size());
+  for (size_t i = 0; i < b.refs.size(); ++i) {
+    float w = _mm_cvtss_f32(_mm_shuffle_ps(b.refs[i].lo, b.refs[i].lo, _MM_SHUFFLE(3, 3, 3, 3)));
+    std::memcpy(&bvh.prim_order[i], &w, 4);
+  }
+  return bvh;
+}
+
 }  // namespace
 
 BVH build_bvh(const std::vector<AABB>& prim_bounds, const BuildOptions& options) {
+  if (options.method == SplitMethod::BinnedSAH) return build_binned_fast(prim_bounds, options);
   Builder b(prim_bounds, options);
   b.centroids.resize(prim_bounds.size());
   b.prims.reserve(prim_bounds.size());
