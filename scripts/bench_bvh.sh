@@ -9,7 +9,7 @@ cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DT
   -DPYTHON_EXECUTABLE="${TESSERA_PYTHON:-/usr/bin/python3}" >/dev/null
 cmake --build build-bench -j"$(nproc)" --target bench_bvh >/dev/null
 MESHES=("$MESHES_DIR"/stanford-bunny.obj "$MESHES_DIR"/nefertiti.obj "$MESHES_DIR"/ogre.obj "$MESHES_DIR"/igea.ply)
-ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --builder-threads 1 --builder-meshes stanford-bunny.obj,igea.ply "$@")
+ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --builder-threads 1 --builder-res 512 --builder-meshes stanford-bunny.obj,igea.ply "$@")
 OUT=docs/BVH_BENCHMARK.md
 TMP=$(mktemp)
 build-bench/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$TMP"

@@ -291,6 +291,14 @@ bool bvh4_intersect(const BVH4& bvh, const vec3& o, const vec3& d, float& tmax, 
           ref = n.child[first];
           continue;
         }
+        // Fetch the hit children's nodes while sorting.
+        for (int m = mask | (1 << first); m; m &= m - 1) {
+          const uint32_t c = n.child[__builtin_ctz(m)];
+          if (!bvh4_is_leaf(c)) {
+            _mm_prefetch(reinterpret_cast<const char*>(&nodes[c]), _MM_HINT_T0);
+            _mm_prefetch(reinterpret_cast<const char*>(&nodes[c]) + 64, _MM_HINT_T0);
+          }
+        }
         // Nearest first: insertion sort of the (at most four) hit children by
         // distance, farthest pushed first.
         StackEntry e[4];
