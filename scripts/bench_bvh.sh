@@ -12,6 +12,9 @@ MESHES=("$MESHES_DIR"/stanford-bunny.obj "$MESHES_DIR"/nefertiti.obj "$MESHES_DI
 ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --builder-threads 1 --builder-res 512 --builder-meshes stanford-bunny.obj,igea.ply "$@")
 OUT=docs/BVH_BENCHMARK.md
 TMP=$(mktemp)
+NOTES=$(mktemp)
+# Hand-written notes below the marker line survive regeneration.
+if [ -f "$OUT" ] && grep -q '^<!-- notes -->' "$OUT"; then sed -n '/^<!-- notes -->/,$p' "$OUT" >"$NOTES"; fi
 build-bench/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$TMP"
 {
   echo "# BVH benchmark: Tessera vs Embree"
@@ -36,6 +39,7 @@ build-bench/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$TMP"
   echo "rays in a task_arena of the given thread count."
   echo
   cat "$TMP"
+  cat "$NOTES"
 } >"$OUT"
-rm -f "$TMP"
+rm -f "$TMP" "$NOTES"
 echo "wrote $OUT"
