@@ -9,6 +9,9 @@ import numpy as np
 
 from . import core
 
+# Figures of the last finished render, for benchmarks and tests.
+last_render_stats = {}
+
 
 def render_size(scene):
     r = scene.render
@@ -113,6 +116,11 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             summary += f", {rs['invalid_samples']} NaN/Inf samples discarded"
         print(summary)
         self.update_stats("", summary)
+        last_render_stats.clear()
+        last_render_stats.update(stats)
+        last_render_stats.update(render_seconds=rs["seconds"], rays=rs["rays"], samples=rs["samples_done"],
+                                 rays_per_second=rays_per_s, invalid_samples=rs["invalid_samples"],
+                                 warnings=list(report.warnings))
 
     @staticmethod
     def _write(layer, pixels):

@@ -185,7 +185,24 @@ inline int intersect_tri4(const Tri4& tri, const Ray4& r, __m128& t_out, __m128&
   if (_mm_movemask_ps(valid) == 0) return 0;
   const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.0f), det);
   const __m128 t = _mm_mul_ps(t_scaled, inv_det);
-  valid = _mm_and_ps(valid, _mm_and_ps(_mm_cmpgt_ps(t, zero), _mm_cmplt_ps(t, r.tmax)));
+  // The conservative t error bound of triangle_t_error, lane by lane.
+  const __m128 sign = _mm_set1_ps(-0.0f);
+  auto abs4 = [&](__m128 x) { return _mm_andnot_ps(sign, x); };
+  auto g = [](int n) { return _mm_set1_ps(gamma(n)); };
+  const __m128 max_xt = _mm_max_ps(abs4(ax), _mm_max_ps(abs4(bx), abs4(cx)));
+  const __m128 max_yt = _mm_max_ps(abs4(ay), _mm_max_ps(abs4(by), abs4(cy)));
+  const __m128 max_zt = _mm_max_ps(abs4(az), _mm_max_ps(abs4(bz), abs4(cz)));
+  const __m128 delta_x = _mm_mul_ps(g(5), _mm_add_ps(max_xt, max_zt));
+  const __m128 delta_y = _mm_mul_ps(g(5), _mm_add_ps(max_yt, max_zt));
+  const __m128 delta_z = _mm_mul_ps(g(3), max_zt);
+  const __m128 delta_e = _mm_mul_ps(_mm_set1_ps(2.0f),
+      _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(2), max_xt), max_yt), _mm_mul_ps(delta_y, max_xt)),
+                 _mm_mul_ps(delta_x, max_yt)));
+  const __m128 max_e = _mm_max_ps(abs4(u), _mm_max_ps(abs4(v), abs4(w)));
+  const __m128 delta_t = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(3.0f),
+      _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(3), max_e), max_zt), _mm_mul_ps(delta_e, max_zt)),
+                 _mm_mul_ps(delta_z, max_e))), abs4(inv_det));
+  valid = _mm_and_ps(valid, _mm_and_ps(_mm_cmpgt_ps(t, delta_t), _mm_cmplt_ps(t, r.tmax)));
   t_out = t;
   u_out = _mm_mul_ps(v, inv_det);
   v_out = _mm_mul_ps(w, inv_det);

@@ -27,6 +27,23 @@ struct TriangleHit {
   float t, u, v;  // distance and barycentrics of v1 and v2
 };
 
+// Conservative bound on the rounding error of the computed t (pbrt-v4,
+// 6.8.5, from the sheared vertices and the edge functions). A hit nearer than
+// that may be the very surface the ray leaves, so it is not a hit: together
+// with offset_ray_origin this keeps rays from re-hitting their own surface.
+inline float triangle_t_error(float ax, float ay, float az, float bx, float by, float bz, float cx, float cy, float cz,
+                              float u, float v, float w, float inv_det) {
+  const float max_xt = std::max(std::abs(ax), std::max(std::abs(bx), std::abs(cx)));
+  const float max_yt = std::max(std::abs(ay), std::max(std::abs(by), std::abs(cy)));
+  const float max_zt = std::max(std::abs(az), std::max(std::abs(bz), std::abs(cz)));
+  const float delta_x = gamma(5) * (max_xt + max_zt);
+  const float delta_y = gamma(5) * (max_yt + max_zt);
+  const float delta_z = gamma(3) * max_zt;
+  const float delta_e = 2.0f * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+  const float max_e = std::max(std::abs(u), std::max(std::abs(v), std::abs(w)));
+  return 3.0f * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * std::abs(inv_det);
+}
+
 // Returns true and fills hit if the ray hits triangle (p0, p1, p2) at
 // 0 < t < tmax. Edges count as inside (watertight, no gaps).
 inline bool intersect_triangle(const vec3& p0, const vec3& p1, const vec3& p2, const vec3& o,
@@ -56,7 +73,7 @@ inline bool intersect_triangle(const vec3& p0, const vec3& p1, const vec3& p2, c
   hit.t = t_scaled * inv_det;
   hit.u = v * inv_det;
   hit.v = w * inv_det;
-  return hit.t > 0.0f && hit.t < tmax;
+  return hit.t > triangle_t_error(ax, ay, az, bx, by, bz, cx, cy, cz, u, v, w, inv_det) && hit.t < tmax;
 }
 
 }  // namespace tessera

@@ -1,0 +1,33 @@
+"""Each Blender light type as bright as in Cycles: Watts converted the way
+Cycles converts them."""
+
+import numpy as np
+import pytest
+
+from helpers import compare, render
+from scenes import floor_under_light
+
+LIGHTS = {
+    "point": ('POINT', dict(energy=100.0, shadow_soft_size=0.0)),
+    "point_radius": ('POINT', dict(energy=100.0, shadow_soft_size=0.5)),
+    "spot": ('SPOT', dict(energy=300.0, shadow_soft_size=0.1, spot_size=0.9, spot_blend=0.3)),
+    "sun": ('SUN', dict(energy=3.0, angle=0.1)),
+    "sun_sharp": ('SUN', dict(energy=3.0, angle=0.0)),
+    "area_square": ('AREA', dict(energy=200.0, shape='SQUARE', size=1.0)),
+    "area_rectangle": ('AREA', dict(energy=200.0, shape='RECTANGLE', size=1.5, size_y=0.5)),
+    "area_disk": ('AREA', dict(energy=200.0, shape='DISK', size=1.0)),
+    "area_ellipse": ('AREA', dict(energy=200.0, shape='ELLIPSE', size=1.5, size_y=0.6)),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(LIGHTS))
+def test_light_matches_cycles(kind):
+    light_type, props = LIGHTS[kind]
+    scene = floor_under_light(light_type, **props)
+    ours = render(scene, 'TESSERA', samples=64, bounces=0)
+    ref = render(scene, 'CYCLES', samples=64, bounces=0)
+    assert np.all(np.isfinite(ours))
+    c = compare(ours, ref)
+    print(kind, {k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(c["mean_rel_diff"] < 0.02), f"{kind}: mean {c['mean_test']} vs Cycles {c['mean_ref']}"
+    assert c["rel_rmse"] < 0.05, c
