@@ -2,9 +2,7 @@
 
 import math
 
-import os
 import bpy
-ROUGH = float(os.environ.get("ROUGH", "1.0"))
 
 
 def empty_scene():
@@ -57,7 +55,7 @@ def set_world(scene, color=(0.0, 0.0, 0.0), strength=1.0):
 def floor_under_light(light_type, **light_props):
     """A white diffuse floor seen from above, lit by one light of the given type."""
     scene = empty_scene()
-    add_plane(20, material=principled("Floor", (0.8, 0.8, 0.8), Specular=0.0, Roughness=ROUGH))
+    add_plane(20, material=principled("Floor", (0.8, 0.8, 0.8), Specular=0.0, Roughness=1.0))
     add_camera(scene, location=(0, 0, 6), lens=35)
     set_world(scene)
     bpy.ops.object.light_add(type=light_type, location=(0.7, -0.4, 2.0), rotation=(math.radians(15), 0, 0))
