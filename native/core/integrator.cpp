@@ -38,7 +38,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
 
     const SurfaceInteraction si = scene.interaction(ray, hit);
-    const Material& material = scene.materials[si.material];
+    const Material material = scene.material_at(si);
     const vec3 le = material.emission(si.back_face);
     if (max_component(le) > 0.0f) {
       float w = 1.0f;

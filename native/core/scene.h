@@ -59,6 +59,8 @@ class Scene {
   bool intersect(const Ray& ray, Hit& hit) const;
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
   SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
+  // The material parameters at a hit, textures applied.
+  Material material_at(const SurfaceInteraction& si) const { return materials[si.material]; }
 
   const LightSampler& light_sampler() const { return light_sampler_; }
   AABB bounds() const { return tlas_.bounds(); }
