@@ -29,6 +29,9 @@ struct BuildOptions {
   // four triangles at once). 0: automatic (1 for build_bvh, 4 for build_mesh).
   int sah_block_size = 0;
   bool parallel = true;     // TBB tasks for large subtrees
+  // Mesh BLAS width: 0 = automatic (8, the AVX2 BVH8, when the CPU has AVX2;
+  // else 4, the SSE2 BVH4), 4 or 8 (8 falls back to 4 without AVX2).
+  int bvh_width = 0;
 };
 
 struct BVH {

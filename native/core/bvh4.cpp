@@ -1,14 +1,20 @@
 #include "bvh4.h"
+#include "bvh8.h"
+#include "simd_tri4.h"
 
 #include <algorithm>
 
 namespace tessera {
 namespace {
 
+// Collapses the binary tree into an N-wide one (Out: BVH4 or BVH8, Node its
+// node type): each node takes the children of its largest-area descendants
+// until it has N.
+template <int N, typename Node, typename Out>
 struct Collapser {
   const BVH& bin;
   const vec3* verts;
-  BVH4 out;
+  Out out;
 
   static float area(const BVHNode& n) { return AABB{n.lo, n.hi}.half_area(); }
 
@@ -28,14 +34,28 @@ struct Collapser {
     return kBVH4LeafBit | (first_block << 3) | (blocks - 1);
   }
 
-  // Returns the reference to the subtree of binary node i (which must not be a leaf
-  // when called for the root).
+  static void clear(Node& node) {
+    for (int c = 0; c < N; ++c) {
+      for (int a = 0; a < 3; ++a) node.box[2 * a][c] = kInf, node.box[2 * a + 1][c] = -kInf;
+      node.child[c] = kBVH4EmptyChild;
+    }
+    node.num_children = 0;
+    for (uint32_t& p : node.pad) p = 0;
+  }
+  static void set_child(Node& node, int c, const BVHNode& k, uint32_t ref) {
+    node.box[0][c] = k.lo.x, node.box[1][c] = k.hi.x;
+    node.box[2][c] = k.lo.y, node.box[3][c] = k.hi.y;
+    node.box[4][c] = k.lo.z, node.box[5][c] = k.hi.z;
+    node.child[c] = ref;
+  }
+
+  // Returns the reference to the subtree of binary node i.
   uint32_t emit(uint32_t i) {
     const BVHNode& n = bin.nodes[i];
     if (n.is_leaf()) return emit_leaf(n);
-    uint32_t kids[4] = {n.first, n.first + 1, 0, 0};
+    uint32_t kids[N] = {n.first, n.first + 1};
     int count = 2;
-    while (count < 4) {
+    while (count < N) {
       int best = -1;
       float best_area = -1.0f;
       for (int c = 0; c < count; ++c) {
@@ -52,24 +72,35 @@ struct Collapser {
     }
     const uint32_t index = uint32_t(out.nodes.size());
     out.nodes.emplace_back();
-    uint32_t refs[4];
+    uint32_t refs[N];
     for (int c = 0; c < count; ++c) refs[c] = emit(kids[c]);
-    BVH4Node& node = out.nodes[index];
-    for (int c = 0; c < 4; ++c) {
-      if (c < count) {
-        const BVHNode& k = bin.nodes[kids[c]];
-        node.box[0][c] = k.lo.x, node.box[1][c] = k.hi.x;
-        node.box[2][c] = k.lo.y, node.box[3][c] = k.hi.y;
-        node.box[4][c] = k.lo.z, node.box[5][c] = k.hi.z;
-        node.child[c] = refs[c];
-      } else {
-        for (int a = 0; a < 3; ++a) node.box[2 * a][c] = kInf, node.box[2 * a + 1][c] = -kInf;
-        node.child[c] = kBVH4EmptyChild;
-      }
-    }
+    Node& node = out.nodes[index];
+    clear(node);
+    for (int c = 0; c < count; ++c) set_child(node, c, bin.nodes[kids[c]], refs[c]);
     node.num_children = uint32_t(count);
-    node.pad[0] = node.pad[1] = node.pad[2] = 0;
     return index;
+  }
+
+  void run() {
+    if (bin.nodes.empty()) return;
+    size_t leaves = 0;
+    for (const BVHNode& n : bin.nodes) leaves += n.is_leaf();
+    out.nodes.reserve(bin.nodes.size() / (N - 1) + 1);
+    out.tris.reserve(leaves + bin.prim_order.size() / 4 + 1);
+    const BVHNode& root = bin.nodes[0];
+    if (root.is_leaf()) {
+      // A single leaf: wrap it in a root with one child.
+      out.nodes.emplace_back();
+      clear(out.nodes[0]);
+      const uint32_t ref = emit_leaf(root);
+      set_child(out.nodes[0], 0, root, ref);
+      out.nodes[0].num_children = 1;
+    } else {
+      emit(0);
+    }
+    out.nodes.shrink_to_fit();
+    out.tris.shrink_to_fit();
+    out.bounds = AABB{root.lo, root.hi};
   }
 };
 
@@ -77,14 +108,10 @@ struct Collapser {
 struct Ray4 {
   __m128 org_near[3], org_far[3], inv[3];
   __m128 tmax;
-  int near_lo[3];  // box row holding the near plane per axis (0: lo, 1: hi) ...
-  // ... triangle test (shear to +z), broadcast
-  __m128 okx, oky, okz, sx, sy, sz;
-  int kx, ky, kz;
-  RayShear shear;
-  vec3 o;
+  int near_lo[3];  // box row holding the near plane per axis (0: lo, 1: hi)
+  TriRay4 tri;
 
-  Ray4(const vec3& origin, const vec3& d, float t_max) : shear(d), o(origin) {
+  Ray4(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
     for (int i = 0; i < 3; ++i) {
       // Same guard as TraversalRay: avoid 0 * inf = NaN in the slab test.
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
@@ -98,13 +125,6 @@ struct Ray4 {
       org_far[i] = _mm_set1_ps(near_lo[i] == 0 ? o_hi : o_lo);
     }
     tmax = _mm_set1_ps(t_max);
-    kx = shear.kx, ky = shear.ky, kz = shear.kz;
-    okx = _mm_set1_ps(origin[kx]);
-    oky = _mm_set1_ps(origin[ky]);
-    okz = _mm_set1_ps(origin[kz]);
-    sx = _mm_set1_ps(shear.sx);
-    sy = _mm_set1_ps(shear.sy);
-    sz = _mm_set1_ps(shear.sz);
   }
 };
 
@@ -125,90 +145,6 @@ inline int intersect_node(const BVH4Node& n, const Ray4& r, __m128& tnear) {
   return _mm_movemask_ps(_mm_cmple_ps(tnear, tfar));
 }
 
-// Watertight test of one ray against four triangles (see triangle.h for the
-// scalar version; the lanes repeat its operations exactly). Returns the mask
-// of lanes hit within (0, tmax) and their t, u, v.
-inline int intersect_tri4(const Tri4& tri, const Ray4& r, __m128& t_out, __m128& u_out, __m128& v_out) {
-  const int kx = r.kx, ky = r.ky, kz = r.kz;
-  const __m128 ax0 = _mm_sub_ps(_mm_load_ps(tri.v[0][kx]), r.okx);
-  const __m128 ay0 = _mm_sub_ps(_mm_load_ps(tri.v[0][ky]), r.oky);
-  const __m128 az0 = _mm_sub_ps(_mm_load_ps(tri.v[0][kz]), r.okz);
-  const __m128 bx0 = _mm_sub_ps(_mm_load_ps(tri.v[1][kx]), r.okx);
-  const __m128 by0 = _mm_sub_ps(_mm_load_ps(tri.v[1][ky]), r.oky);
-  const __m128 bz0 = _mm_sub_ps(_mm_load_ps(tri.v[1][kz]), r.okz);
-  const __m128 cx0 = _mm_sub_ps(_mm_load_ps(tri.v[2][kx]), r.okx);
-  const __m128 cy0 = _mm_sub_ps(_mm_load_ps(tri.v[2][ky]), r.oky);
-  const __m128 cz0 = _mm_sub_ps(_mm_load_ps(tri.v[2][kz]), r.okz);
-  const __m128 ax = _mm_sub_ps(ax0, _mm_mul_ps(r.sx, az0)), ay = _mm_sub_ps(ay0, _mm_mul_ps(r.sy, az0));
-  const __m128 bx = _mm_sub_ps(bx0, _mm_mul_ps(r.sx, bz0)), by = _mm_sub_ps(by0, _mm_mul_ps(r.sy, bz0));
-  const __m128 cx = _mm_sub_ps(cx0, _mm_mul_ps(r.sx, cz0)), cy = _mm_sub_ps(cy0, _mm_mul_ps(r.sy, cz0));
-  __m128 u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
-  __m128 v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
-  __m128 w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
-  const __m128 zero = _mm_setzero_ps();
-  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)), _mm_cmpeq_ps(w, zero));
-  if (__builtin_expect(_mm_movemask_ps(any_zero) != 0, 0)) {
-    // An edge function is exactly zero: the scalar test redoes it in double.
-    alignas(16) float ts[4], us[4], vs[4];
-    alignas(16) float tm[4];
-    _mm_store_ps(tm, r.tmax);
-    int mask = 0;
-    for (int lane = 0; lane < 4; ++lane) {
-      const vec3 p0(tri.v[0][0][lane], tri.v[0][1][lane], tri.v[0][2][lane]);
-      const vec3 p1(tri.v[1][0][lane], tri.v[1][1][lane], tri.v[1][2][lane]);
-      const vec3 p2(tri.v[2][0][lane], tri.v[2][1][lane], tri.v[2][2][lane]);
-      TriangleHit h;
-      if (intersect_triangle(p0, p1, p2, r.o, r.shear, tm[lane], h)) {
-        mask |= 1 << lane;
-        ts[lane] = h.t, us[lane] = h.u, vs[lane] = h.v;
-      } else {
-        ts[lane] = kInf, us[lane] = vs[lane] = 0.0f;
-      }
-    }
-    t_out = _mm_load_ps(ts), u_out = _mm_load_ps(us), v_out = _mm_load_ps(vs);
-    return mask;
-  }
-  const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)), _mm_cmplt_ps(w, zero));
-  const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)), _mm_cmpgt_ps(w, zero));
-  __m128 valid = _mm_andnot_ps(_mm_and_ps(neg, pos), _mm_castsi128_ps(_mm_set1_epi32(-1)));
-  const __m128 det = _mm_add_ps(_mm_add_ps(u, v), w);
-  valid = _mm_and_ps(valid, _mm_cmpneq_ps(det, zero));
-  if (_mm_movemask_ps(valid) == 0) return 0;
-  const __m128 az = _mm_mul_ps(r.sz, az0), bz = _mm_mul_ps(r.sz, bz0), cz = _mm_mul_ps(r.sz, cz0);
-  const __m128 t_scaled = _mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz));
-  const __m128 tmd = _mm_mul_ps(r.tmax, det);
-  const __m128 det_neg = _mm_cmplt_ps(det, zero);
-  const __m128 fail_neg = _mm_or_ps(_mm_cmpge_ps(t_scaled, zero), _mm_cmplt_ps(t_scaled, tmd));
-  const __m128 fail_pos = _mm_or_ps(_mm_cmple_ps(t_scaled, zero), _mm_cmpgt_ps(t_scaled, tmd));
-  const __m128 fail = _mm_or_ps(_mm_and_ps(det_neg, fail_neg), _mm_andnot_ps(det_neg, fail_pos));
-  valid = _mm_andnot_ps(fail, valid);
-  if (_mm_movemask_ps(valid) == 0) return 0;
-  const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.0f), det);
-  const __m128 t = _mm_mul_ps(t_scaled, inv_det);
-  // The conservative t error bound of triangle_t_error, lane by lane.
-  const __m128 sign = _mm_set1_ps(-0.0f);
-  auto abs4 = [&](__m128 x) { return _mm_andnot_ps(sign, x); };
-  auto g = [](int n) { return _mm_set1_ps(gamma(n)); };
-  const __m128 max_xt = _mm_max_ps(abs4(ax), _mm_max_ps(abs4(bx), abs4(cx)));
-  const __m128 max_yt = _mm_max_ps(abs4(ay), _mm_max_ps(abs4(by), abs4(cy)));
-  const __m128 max_zt = _mm_max_ps(abs4(az), _mm_max_ps(abs4(bz), abs4(cz)));
-  const __m128 delta_x = _mm_mul_ps(g(5), _mm_add_ps(max_xt, max_zt));
-  const __m128 delta_y = _mm_mul_ps(g(5), _mm_add_ps(max_yt, max_zt));
-  const __m128 delta_z = _mm_mul_ps(g(3), max_zt);
-  const __m128 delta_e = _mm_mul_ps(_mm_set1_ps(2.0f),
-      _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(2), max_xt), max_yt), _mm_mul_ps(delta_y, max_xt)),
-                 _mm_mul_ps(delta_x, max_yt)));
-  const __m128 max_e = _mm_max_ps(abs4(u), _mm_max_ps(abs4(v), abs4(w)));
-  const __m128 delta_t = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(3.0f),
-      _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(3), max_e), max_zt), _mm_mul_ps(delta_e, max_zt)),
-                 _mm_mul_ps(delta_z, max_e))), abs4(inv_det));
-  valid = _mm_and_ps(valid, _mm_and_ps(_mm_cmpgt_ps(t, delta_t), _mm_cmplt_ps(t, r.tmax)));
-  t_out = t;
-  u_out = _mm_mul_ps(v, inv_det);
-  v_out = _mm_mul_ps(w, inv_det);
-  return _mm_movemask_ps(valid);
-}
-
 constexpr int kStackSize = 256;
 struct StackEntry {
   uint32_t ref;
@@ -218,40 +154,24 @@ struct StackEntry {
 }  // namespace
 
 BVH4 collapse_to_bvh4(const BVH& binary, const vec3* tri_verts) {
-  Collapser c{binary, tri_verts, {}};
-  if (binary.nodes.empty()) return {};
-  size_t leaves = 0;
-  for (const BVHNode& n : binary.nodes) leaves += n.is_leaf();
-  c.out.nodes.reserve(binary.nodes.size() / 2 + 1);
-  c.out.tris.reserve(leaves + binary.prim_order.size() / 4 + 1);
-  const BVHNode& root = binary.nodes[0];
-  if (root.is_leaf()) {
-    // A single leaf: wrap it in a root with one child.
-    BVH4Node node;
-    for (int ch = 0; ch < 4; ++ch)
-      for (int a = 0; a < 3; ++a) node.box[2 * a][ch] = kInf, node.box[2 * a + 1][ch] = -kInf;
-    for (uint32_t& ch : node.child) ch = kBVH4EmptyChild;
-    c.out.nodes.push_back(node);
-    const uint32_t ref = c.emit_leaf(root);
-    BVH4Node& n = c.out.nodes[0];
-    n.box[0][0] = root.lo.x, n.box[1][0] = root.hi.x, n.box[2][0] = root.lo.y;
-    n.box[3][0] = root.hi.y, n.box[4][0] = root.lo.z, n.box[5][0] = root.hi.z;
-    n.child[0] = ref;
-    n.num_children = 1;
-    n.pad[0] = n.pad[1] = n.pad[2] = 0;
-  } else {
-    c.emit(0);
-  }
-  c.out.bounds = AABB{root.lo, root.hi};
+  Collapser<4, BVH4Node, BVH4> c{binary, tri_verts, {}};
+  c.run();
   return std::move(c.out);
 }
 
-float sah_cost(const BVH4& bvh, const BuildOptions& options) {
+BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts) {
+  Collapser<8, BVH8Node, BVH8> c{binary, tri_verts, {}};
+  c.run();
+  return std::move(c.out);
+}
+
+template <typename Tree>
+static float wide_sah_cost(const Tree& bvh, const BuildOptions& options) {
   if (bvh.nodes.empty()) return 0.0f;
   const float root_area = bvh.bounds.half_area();
   if (root_area <= 0.0f) return 0.0f;
   double cost = options.traversal_cost;  // the root is always visited
-  for (const BVH4Node& n : bvh.nodes)
+  for (const auto& n : bvh.nodes)
     for (uint32_t c = 0; c < n.num_children; ++c) {
       AABB b{vec3(n.box[0][c], n.box[2][c], n.box[4][c]), vec3(n.box[1][c], n.box[3][c], n.box[5][c])};
       const float a = b.half_area() / root_area;
@@ -261,19 +181,25 @@ float sah_cost(const BVH4& bvh, const BuildOptions& options) {
   return float(cost);
 }
 
-int BVH4::depth() const {
-  if (nodes.empty()) return 0;
+template <typename Tree>
+static int wide_depth(const Tree& t) {
+  if (t.nodes.empty()) return 0;
   int best = 0;
   std::vector<std::pair<uint32_t, int>> stack{{0u, 1}};
   while (!stack.empty()) {
     auto [i, d] = stack.back();
     stack.pop_back();
     best = std::max(best, d);
-    for (uint32_t c = 0; c < nodes[i].num_children; ++c)
-      if (!bvh4_is_leaf(nodes[i].child[c])) stack.push_back({nodes[i].child[c], d + 1});
+    for (uint32_t c = 0; c < t.nodes[i].num_children; ++c)
+      if (!bvh4_is_leaf(t.nodes[i].child[c])) stack.push_back({t.nodes[i].child[c], d + 1});
   }
   return best;
 }
+
+float sah_cost(const BVH4& bvh, const BuildOptions& options) { return wide_sah_cost(bvh, options); }
+float sah_cost(const BVH8& bvh, const BuildOptions& options) { return wide_sah_cost(bvh, options); }
+int BVH4::depth() const { return wide_depth(*this); }
+int BVH8::depth() const { return wide_depth(*this); }
 
 template <bool kOrdered>
 bool bvh4_intersect(const BVH4& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
@@ -339,7 +265,7 @@ bool bvh4_intersect(const BVH4& bvh, const vec3& o, const vec3& d, float& tmax, 
       const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
       for (uint32_t b = first; b < first + blocks; ++b) {
         __m128 t, u, v;
-        int mask = intersect_tri4(tris[b], ray, t, u, v);
+        int mask = intersect_tri4(tris[b], ray.tri, ray.tmax, t, u, v);
         if (mask == 0) continue;
         alignas(16) float ts[4], us[4], vs[4];
         _mm_store_ps(ts, t);
@@ -396,7 +322,7 @@ bool bvh4_occluded(const BVH4& bvh, const vec3& o, const vec3& d, float tmax) {
       const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
       for (uint32_t b = first; b < first + blocks; ++b) {
         __m128 t, u, v;
-        if (intersect_tri4(tris[b], ray, t, u, v)) return true;
+        if (intersect_tri4(tris[b], ray.tri, ray.tmax, t, u, v)) return true;
       }
     }
     if (sp == 0) return false;

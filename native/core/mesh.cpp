@@ -2,13 +2,15 @@
 
 #include <tbb/parallel_for.h>
 
+#include "simd.h"
+
 
 namespace tessera {
 
 size_t Mesh::memory_bytes() const {
   return tri_verts.capacity() * sizeof(vec3) + prim_ids.capacity() * sizeof(uint32_t) +
          material_slots.capacity() * sizeof(uint32_t) + corner_normals.capacity() * sizeof(vec3) +
-         corner_uvs.capacity() * sizeof(vec2) + bvh.memory_bytes();
+         corner_uvs.capacity() * sizeof(vec2) + bvh.memory_bytes() + bvh8.memory_bytes();
 }
 
 Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
@@ -39,8 +41,15 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
     const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
     for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
   });
-  mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data());
-  mesh.bvh.sah_cost = sah_cost(binary, options);
+  const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
+  const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
+  if (width == 8) {
+    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data());
+    mesh.bvh8.sah_cost = sah_cost(binary, options);
+  } else {
+    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data());
+    mesh.bvh.sah_cost = sah_cost(binary, options);
+  }
   if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);
   if (in.corner_normals) {
     const vec3* n = reinterpret_cast<const vec3*>(in.corner_normals);
@@ -55,6 +64,12 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
 
 bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit, TraversalOrder order) {
   BVH4Hit h;
+  if (!mesh.bvh8.empty()) {
+    const bool found = order == TraversalOrder::Ordered ? bvh8_intersect_avx2<true>(mesh.bvh8, o, d, tmax, h)
+                                                        : bvh8_intersect_avx2<false>(mesh.bvh8, o, d, tmax, h);
+    if (found) hit = {h.t, h.u, h.v, h.prim};
+    return found;
+  }
   const bool found = order == TraversalOrder::Ordered ? bvh4_intersect<true>(mesh.bvh, o, d, tmax, h)
                                                       : bvh4_intersect<false>(mesh.bvh, o, d, tmax, h);
   if (found) hit = {h.t, h.u, h.v, h.prim};
@@ -62,9 +77,10 @@ bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax,
 }
 
 bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax) {
+  if (!mesh.bvh8.empty()) return bvh8_occluded_avx2(mesh.bvh8, o, d, tmax);
   return bvh4_occluded(mesh.bvh, o, d, tmax);
 }
 
-float mesh_sah_cost(const Mesh& mesh) { return mesh.bvh.sah_cost; }
+float mesh_sah_cost(const Mesh& mesh) { return mesh.bvh8.empty() ? mesh.bvh.sah_cost : mesh.bvh8.sah_cost; }
 
 }  // namespace tessera

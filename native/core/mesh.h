@@ -8,6 +8,7 @@
 #include <vector>
 #include "bvh.h"
 #include "bvh4.h"
+#include "bvh8.h"
 #include "triangle.h"
 
 namespace tessera {
@@ -28,11 +29,15 @@ struct Mesh {
   std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
   std::vector<vec3> corner_normals;     // Blender order, 3 per triangle; empty: flat
   std::vector<vec2> corner_uvs;         // Blender order, 3 per triangle; empty: none
-  BVH4 bvh;                             // four-wide BVH over tri_verts (leaves: contiguous ranges)
+  // The BLAS over tri_verts (leaves: contiguous ranges), one of: the SSE2
+  // four-wide BVH4, or the AVX2 eight-wide BVH8 (BuildOptions::bvh_width).
+  BVH4 bvh;
+  BVH8 bvh8;
   size_t num_input_triangles = 0;
   size_t num_skipped_triangles = 0;     // non-finite or out-of-range vertices
 
-  AABB bounds() const { return bvh.bounds; }
+  AABB bounds() const { return bvh8.empty() ? bvh.bounds : bvh8.bounds; }
+  int width() const { return bvh8.empty() ? 4 : 8; }
   uint32_t slot(uint32_t prim_id) const { return material_slots.empty() ? 0 : material_slots[prim_id]; }
   size_t memory_bytes() const;
 };

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "core/mesh.h"
+#include "core/simd.h"
 #include "io/mesh_file.h"
 
 using namespace tessera;
@@ -69,11 +70,12 @@ void check_binary_invariants(const BVH& bvh, const std::vector<AABB>& boxes) {
   for (size_t t = 0; t < boxes.size(); ++t) ASSERT_EQ(seen[t], boxes[t].empty() ? 0 : 1) << "primitive " << t;
 }
 
-// Mesh BVH4: each triangle in exactly one leaf, a leaf is a contiguous range of
-// tri_verts, the Tri4 lanes hold exactly those vertices, boxes nest.
-void check_invariants(const Mesh& mesh, size_t num_triangles) {
-  const BVH4& bvh = mesh.bvh;
-  ASSERT_FALSE(bvh.nodes.empty());
+// Mesh BLAS (BVH4 or BVH8): each triangle in exactly one leaf, a leaf is a
+// contiguous range of tri_verts, the Tri4 lanes hold exactly those vertices,
+// boxes nest.
+template <int N, typename Tree>
+void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
+  ASSERT_FALSE(bvh.nodes.empty()) << "N " << N << " w " << mesh.width() << " " << mesh.bvh.nodes.size() << " " << mesh.bvh8.nodes.size();
   ASSERT_EQ(mesh.tri_verts.size(), 3 * mesh.prim_ids.size());
   std::vector<int> seen(num_triangles, 0);
   std::vector<std::pair<uint32_t, AABB>> stack{{0u, bvh.bounds}};
@@ -82,12 +84,13 @@ void check_invariants(const Mesh& mesh, size_t num_triangles) {
     auto [i, parent] = stack.back();
     stack.pop_back();
     ASSERT_LT(i, bvh.nodes.size());
-    const BVH4Node& n = bvh.nodes[i];
+    const auto& n = bvh.nodes[i];
     ASSERT_GE(n.num_children, 1u);
-    ASSERT_LE(n.num_children, 4u);
-    for (uint32_t c = 0; c < 4; ++c) {
+    ASSERT_LE(n.num_children, uint32_t(N));
+    for (uint32_t c = 0; c < uint32_t(N); ++c) {
       if (c >= n.num_children) {
         ASSERT_EQ(n.child[c], kBVH4EmptyChild);
+        ASSERT_GT(n.box[0][c], n.box[1][c]) << "unused child box must be inverted";
         continue;
       }
       AABB box{vec3(n.box[0][c], n.box[2][c], n.box[4][c]), vec3(n.box[1][c], n.box[3][c], n.box[5][c])};
@@ -122,6 +125,28 @@ void check_invariants(const Mesh& mesh, size_t num_triangles) {
   }
   EXPECT_EQ(leaves_total, num_triangles);
   for (size_t t = 0; t < num_triangles; ++t) ASSERT_EQ(seen[t], 1) << "triangle " << t << " not in exactly one leaf";
+}
+
+void check_invariants(const Mesh& mesh, size_t num_triangles) {
+  if (mesh.width() == 8) {
+    ASSERT_TRUE(mesh.bvh.empty()) << "one BLAS per mesh";
+    check_tree<8>(mesh, mesh.bvh8, num_triangles);
+  } else {
+    ASSERT_TRUE(mesh.bvh8.empty()) << "one BLAS per mesh";
+    check_tree<4>(mesh, mesh.bvh, num_triangles);
+  }
+}
+
+// The BLAS widths this CPU runs: 4 always, 8 with AVX2.
+std::vector<int> widths() {
+  std::vector<int> w{4};
+  if (cpu_simd_level() == SimdLevel::AVX2) w.push_back(8);
+  return w;
+}
+
+BuildOptions with_width(BuildOptions opt, int width) {
+  opt.bvh_width = width;
+  return opt;
 }
 
 struct BruteHit {
@@ -200,16 +225,21 @@ TEST(BVH, InvariantsOnRandomTriangles) {
     BuildOptions opt;
     opt.method = m;
     TriangleSoup s = random_soup(5000, 7);
-    Mesh mesh = make_mesh(s, opt);
-    check_invariants(mesh, s.num_triangles());
+    for (int w : widths()) {
+      Mesh mesh = make_mesh(s, with_width(opt, w));
+      EXPECT_EQ(mesh.width(), w);
+      check_invariants(mesh, s.num_triangles());
+    }
   }
 }
 
 TEST(BVH, MillionRandomRaysMatchBruteForce) {
   TriangleSoup s = random_soup(300, 11, 0.3f);
-  Mesh mesh = make_mesh(s);
-  check_invariants(mesh, s.num_triangles());
-  check_against_brute_force(mesh, 1000000, 1);
+  for (int w : widths()) {
+    Mesh mesh = make_mesh(s, with_width({}, w));
+    check_invariants(mesh, s.num_triangles());
+    check_against_brute_force(mesh, 1000000, 1);
+  }
 }
 
 TEST(BVH, EveryBuilderMatchesBruteForce) {
@@ -220,9 +250,11 @@ TEST(BVH, EveryBuilderMatchesBruteForce) {
       opt.max_leaf_size = leaf;
       opt.bins = leaf == 3 ? 4 : 32;
       TriangleSoup s = random_soup(1000, 3);
-      Mesh mesh = make_mesh(s, opt);
-      check_invariants(mesh, s.num_triangles());
-      check_against_brute_force(mesh, 20000, 2);
+      for (int w : widths()) {
+        Mesh mesh = make_mesh(s, with_width(opt, w));
+        check_invariants(mesh, s.num_triangles());
+        check_against_brute_force(mesh, 20000, 2);
+      }
     }
   }
 }
@@ -230,17 +262,21 @@ TEST(BVH, EveryBuilderMatchesBruteForce) {
 TEST(BVH, SingleTriangleAndTinyMeshes) {
   for (size_t n : {1, 2, 3, 4, 5, 9}) {
     TriangleSoup s = random_soup(n, 21 + uint32_t(n), 0.5f);
-    Mesh mesh = make_mesh(s);
-    check_invariants(mesh, n);
-    check_against_brute_force(mesh, 5000, 4);
+    for (int w : widths()) {
+      Mesh mesh = make_mesh(s, with_width({}, w));
+      check_invariants(mesh, n);
+      check_against_brute_force(mesh, 5000, 4);
+    }
   }
 }
 
 TEST(BVH, RealMeshInvariantsAndBruteForce) {
   TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
-  Mesh mesh = make_mesh(s);
-  check_invariants(mesh, s.num_triangles());
-  check_against_brute_force(mesh, 3000, 5);
+  for (int w : widths()) {
+    Mesh mesh = make_mesh(s, with_width({}, w));
+    check_invariants(mesh, s.num_triangles());
+    check_against_brute_force(mesh, 3000, 5);
+  }
 }
 
 TEST(BVH, BinnedSAHIsCloseToFullSweep) {
@@ -268,7 +304,7 @@ TEST(BVH, IdenticalTrianglesStayWithinTraversalDepth) {
   s.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   for (int i = 0; i < 100000; ++i) s.indices.insert(s.indices.end(), {0, 1, 2});
   Mesh mesh = make_mesh(s);
-  EXPECT_LE(mesh.bvh.depth(), 64);
+  EXPECT_LE(mesh.width() == 8 ? mesh.bvh8.depth() : mesh.bvh.depth(), 64);
   check_invariants(mesh, s.num_triangles());
   float tmax = kInf;
   MeshHit h;

@@ -2,8 +2,11 @@
 // parallel rays.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "core/aabb.h"
 #include "core/mesh.h"
+#include "core/simd.h"
 #include "core/traverse.h"
 #include "core/triangle.h"
 
@@ -116,7 +119,13 @@ TEST(Triangle, MeshGridHasNoCracksThroughSimdPath) {
   in.num_vertices = pos.size() / 3;
   in.indices = idx.data();
   in.num_triangles = idx.size() / 3;
-  Mesh mesh = build_mesh(in);
+  std::vector<int> widths{4};
+  if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back(8);  // the AVX2 BVH8 path too
+  for (int width : widths) {
+  BuildOptions opt;
+  opt.bvh_width = width;
+  Mesh mesh = build_mesh(in, opt);
+  ASSERT_EQ(mesh.width(), width);
   int misses = 0, tests = 0, occl_disagree = 0;
   for (int y = 0; y <= 4 * n; ++y)
     for (int x = 0; x <= 4 * n; ++x) {
@@ -138,8 +147,9 @@ TEST(Triangle, MeshGridHasNoCracksThroughSimdPath) {
       }
     }
   EXPECT_GT(tests, 500);
-  EXPECT_EQ(misses, 0);
-  EXPECT_EQ(occl_disagree, 0);
+  EXPECT_EQ(misses, 0) << "width " << width;
+  EXPECT_EQ(occl_disagree, 0) << "width " << width;
+  }
 }
 
 // The SIMD path gives bit-identical results to the scalar test.
@@ -167,4 +177,66 @@ TEST(Triangle, SimdMeshHitsEqualScalarTest) {
     ASSERT_TRUE(intersect_mesh(mesh, o, dir, tmax, mh)) << i;
     EXPECT_EQ(mh.t, t_ref) << i;
   }
+}
+
+// The AVX2 BVH8 (eight-wide nodes) and the SSE2 BVH4 give bit-identical
+// closest hits (t, u, v, triangle) and the same any-hit answers: both use the
+// same binary tree, the same slab arithmetic per lane and the same Tri4 test.
+TEST(Triangle, Bvh8HitsEqualBvh4BitForBit) {
+  if (cpu_simd_level() != SimdLevel::AVX2) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937 rng(77);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+  for (int i = 0; i < 4000; ++i) {
+    vec3 c(u(rng), u(rng), u(rng));
+    for (int k = 0; k < 3; ++k) {
+      vec3 p = c + 0.08f * vec3(u(rng), u(rng), u(rng));
+      pos.insert(pos.end(), {p.x, p.y, p.z});
+      idx.push_back(uint32_t(3 * i + k));
+    }
+  }
+  // A few axis-aligned, exactly planar squares so that rays graze faces and edges.
+  const float q[] = {-1, -1, 0.5f, 1, -1, 0.5f, 1, 1, 0.5f, -1, 1, 0.5f};
+  const uint32_t base = uint32_t(pos.size() / 3);
+  pos.insert(pos.end(), q, q + 12);
+  idx.insert(idx.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  MeshInput in;
+  in.positions = pos.data();
+  in.num_vertices = pos.size() / 3;
+  in.indices = idx.data();
+  in.num_triangles = idx.size() / 3;
+  BuildOptions o4, o8;
+  o4.bvh_width = 4;
+  o8.bvh_width = 8;
+  Mesh m4 = build_mesh(in, o4), m8 = build_mesh(in, o8);
+  ASSERT_EQ(m4.width(), 4);
+  ASSERT_EQ(m8.width(), 8);
+  ASSERT_EQ(m4.prim_ids, m8.prim_ids);
+  int hits = 0;
+  for (int i = 0; i < 200000; ++i) {
+    vec3 o(1.5f * u(rng), 1.5f * u(rng), 1.5f * u(rng));
+    vec3 d(u(rng), u(rng), u(rng));
+    if (i % 5 == 0) d = vec3(0.0f, 0.0f, d.z);  // axis-parallel rays
+    if (i % 7 == 0) o.z = 0.5f;                 // origins on the plane
+    if (glm::length(d) == 0.0f) continue;
+    float t4 = kInf, t8 = kInf;
+    MeshHit h4, h8;
+    for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+      t4 = t8 = kInf;
+      const bool f4 = intersect_mesh(m4, o, d, t4, h4, order);
+      const bool f8 = intersect_mesh(m8, o, d, t8, h8, order);
+      ASSERT_EQ(f4, f8) << i;
+      if (f4) {
+        ASSERT_EQ(h4.t, h8.t) << i;
+        ASSERT_EQ(h4.u, h8.u) << i;
+        ASSERT_EQ(h4.v, h8.v) << i;
+        ASSERT_EQ(h4.prim, h8.prim) << i;
+        hits += order == TraversalOrder::Ordered;
+      }
+    }
+    ASSERT_EQ(occluded_mesh(m4, o, d, kInf), occluded_mesh(m8, o, d, kInf)) << i;
+    ASSERT_EQ(occluded_mesh(m4, o, d, 0.3f), occluded_mesh(m8, o, d, 0.3f)) << i;
+  }
+  EXPECT_GT(hits, 10000);
 }

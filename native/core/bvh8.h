@@ -1,0 +1,47 @@
+// Eight-wide BVH for triangle meshes, used when the CPU has AVX2: collapsed
+// from the same binary SAH tree as the BVH4, one 8-wide slab test per node
+// (AVX, same arithmetic per lane as intersect_box), triangles in the same Tri4
+// blocks and the same watertight SIMD triangle test as the BVH4, so hits are
+// bit for bit those of the BVH4 and of the scalar test. The traversal is
+// compiled for AVX2 in its own functions (bvh8_avx2.cpp) and only ever called
+// after cpu_simd_level() said AVX2.
+#pragma once
+#include <vector>
+
+#include "bvh4.h"
+
+namespace tessera {
+
+// 256 bytes, four cache lines: child boxes per axis as [lo x8][hi x8] (the
+// first two lines hold x and y, the third z, the fourth the references). An
+// unused child has an inverted box (lo = +inf, hi = -inf), which no ray hits.
+// Child references are encoded as in the BVH4 (kBVH4LeafBit, Tri4 blocks).
+struct alignas(64) BVH8Node {
+  float box[6][8];
+  uint32_t child[8];
+  uint32_t num_children;
+  uint32_t pad[7];
+};
+static_assert(sizeof(BVH8Node) == 256, "BVH8Node must stay 256 bytes");
+
+struct BVH8 {
+  std::vector<BVH8Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
+  std::vector<Tri4> tris;
+  AABB bounds;
+  float sah_cost = 0.0f;  // of the binary tree it was collapsed from
+
+  bool empty() const { return nodes.empty(); }
+  size_t memory_bytes() const { return nodes.capacity() * sizeof(BVH8Node) + tris.capacity() * sizeof(Tri4); }
+  int depth() const;
+};
+
+// As collapse_to_bvh4, with up to eight children per node.
+BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts);
+float sah_cost(const BVH8& bvh, const BuildOptions& options = {});
+
+// AVX2 traversal (bvh8_avx2.cpp). Call only when cpu_simd_level() == AVX2.
+template <bool kOrdered>
+bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit);
+bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax);
+
+}  // namespace tessera

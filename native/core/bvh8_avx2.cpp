@@ -1,0 +1,205 @@
+// BVH8 traversal compiled for AVX2 (see bvh8.h). Every header is included
+// before the target pragma, so inline functions from them keep the baseline
+// target and the linker can never pick an AVX2 copy for baseline code; the
+// code below the pragma has internal linkage except the two entry points.
+// FMA is not enabled: no multiply-add is contracted, so the box and triangle
+// arithmetic rounds exactly as in the SSE2 BVH4 and the scalar tests.
+#include <immintrin.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "bvh8.h"
+#include "triangle.h"
+
+#pragma GCC push_options
+#pragma GCC target("avx2")
+
+#include "simd_tri4.h"
+
+namespace tessera {
+namespace {
+
+struct Ray8 {
+  __m256 org_near[3], org_far[3], inv[3];
+  __m256 tmax8;
+  __m128 tmax4;
+  int near_lo[3];
+  TriRay4 tri;
+
+  Ray8(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
+    for (int i = 0; i < 3; ++i) {
+      // The same per-axis setup as Ray4 / TraversalRay.
+      float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
+      float inv_i = 1.0f / di;
+      inv[i] = _mm256_set1_ps(inv_i);
+      near_lo[i] = inv_i >= 0.0f ? 0 : 1;
+      const float delta = parallel_axis_delta(origin[i], d[i]);
+      const float o_lo = origin[i] + delta, o_hi = origin[i] - delta;
+      org_near[i] = _mm256_set1_ps(near_lo[i] == 0 ? o_lo : o_hi);
+      org_far[i] = _mm256_set1_ps(near_lo[i] == 0 ? o_hi : o_lo);
+    }
+    set_tmax(t_max);
+  }
+  void set_tmax(float t) {
+    tmax8 = _mm256_set1_ps(t);
+    tmax4 = _mm_set1_ps(t);
+  }
+};
+
+// Slab test against the eight child boxes: intersect_box's arithmetic per lane.
+inline int intersect_node8(const BVH8Node& n, const Ray8& r, __m256& tnear) {
+  const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
+  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
+  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv[0]);
+  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
+  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv[1]);
+  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
+  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv[2]);
+  tnear = _mm256_max_ps(_mm256_max_ps(tnx, tny), _mm256_max_ps(tnz, _mm256_setzero_ps()));
+  const __m256 tfar = _mm256_mul_ps(_mm256_min_ps(_mm256_min_ps(tfx, tfy), _mm256_min_ps(tfz, r.tmax8)),
+                                    _mm256_set1_ps(1.0f + 2.0f * gamma(3)));
+  return _mm256_movemask_ps(_mm256_cmp_ps(tnear, tfar, _CMP_LE_OQ));
+}
+
+inline void prefetch_node(const BVH8Node* nodes, uint32_t ref) {
+  const char* p = reinterpret_cast<const char*>(&nodes[ref]);
+  _mm_prefetch(p, _MM_HINT_T0);
+  _mm_prefetch(p + 64, _MM_HINT_T0);
+  _mm_prefetch(p + 128, _MM_HINT_T0);
+  _mm_prefetch(p + 192, _MM_HINT_T0);
+}
+
+constexpr int kStackSize = 512;
+struct StackEntry {
+  uint32_t ref;
+  float t;
+};
+
+}  // namespace
+
+template <bool kOrdered>
+bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
+  if (bvh.nodes.empty()) return false;
+  Ray8 ray(o, d, tmax);
+  const BVH8Node* nodes = bvh.nodes.data();
+  const Tri4* tris = bvh.tris.data();
+  StackEntry stack[kStackSize];
+  int sp = 0;
+  uint32_t ref = 0;
+  bool found = false;
+  float t_best = tmax;
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const BVH8Node& n = nodes[ref];
+      __m256 tn;
+      int mask = intersect_node8(n, ray, tn);
+      if (mask != 0) {
+        const int first = __builtin_ctz(mask);
+        mask &= mask - 1;
+        if (mask == 0) {  // one child hit: descend without the stack
+          ref = n.child[first];
+          continue;
+        }
+        alignas(32) float dist[8];
+        _mm256_store_ps(dist, tn);
+        if (!kOrdered) {
+          int lanes[8], k = 0;
+          for (int m = mask; m; m &= m - 1) lanes[k++] = __builtin_ctz(m);
+          for (int j = k - 1; j >= 0; --j) stack[sp++] = {n.child[lanes[j]], dist[lanes[j]]};
+          ref = n.child[first];
+          continue;
+        }
+        // Nearest first: insertion sort of the hit children by distance
+        // (prefetching their nodes), farthest pushed first.
+        StackEntry e[8];
+        int k = 0;
+        e[k++] = {n.child[first], dist[first]};
+        if (!bvh4_is_leaf(n.child[first])) prefetch_node(nodes, n.child[first]);
+        for (int m = mask; m; m &= m - 1) {
+          const int c = __builtin_ctz(m);
+          StackEntry x{n.child[c], dist[c]};
+          if (!bvh4_is_leaf(x.ref)) prefetch_node(nodes, x.ref);
+          int j = k++;
+          while (j > 0 && e[j - 1].t > x.t) {
+            e[j] = e[j - 1];
+            --j;
+          }
+          e[j] = x;
+        }
+        for (int j = k - 1; j > 0; --j) stack[sp++] = e[j];
+        ref = e[0].ref;
+        continue;
+      }
+    } else {
+      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = first; b < first + blocks; ++b) {
+        __m128 t, u, v;
+        int mask = intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v);
+        if (mask == 0) continue;
+        alignas(16) float ts[4], us[4], vs[4];
+        _mm_store_ps(ts, t);
+        _mm_store_ps(us, u);
+        _mm_store_ps(vs, v);
+        // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
+        int best = -1;
+        for (int m = mask; m; m &= m - 1) {
+          const int lane = __builtin_ctz(m);
+          if (best < 0 || ts[lane] < ts[best]) best = lane;
+        }
+        t_best = ts[best];
+        hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
+        ray.set_tmax(t_best);
+        found = true;
+      }
+    }
+    // Pop, skipping entries farther than the nearest hit so far.
+    for (;;) {
+      if (sp == 0) {
+        tmax = t_best;
+        return found;
+      }
+      --sp;
+      if (stack[sp].t <= t_best) break;
+    }
+    ref = stack[sp].ref;
+  }
+}
+
+template bool bvh8_intersect_avx2<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
+template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
+
+bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
+  if (bvh.nodes.empty()) return false;
+  Ray8 ray(o, d, tmax);
+  const BVH8Node* nodes = bvh.nodes.data();
+  const Tri4* tris = bvh.tris.data();
+  uint32_t stack[kStackSize];
+  int sp = 0;
+  uint32_t ref = 0;
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const BVH8Node& n = nodes[ref];
+      __m256 tn;
+      int mask = intersect_node8(n, ray, tn);
+      if (mask != 0) {
+        const int first = __builtin_ctz(mask);
+        for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
+        ref = n.child[first];
+        continue;
+      }
+    } else {
+      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = first; b < first + blocks; ++b) {
+        __m128 t, u, v;
+        if (intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v)) return true;
+      }
+    }
+    if (sp == 0) return false;
+    ref = stack[--sp];
+  }
+}
+
+}  // namespace tessera
+
+#pragma GCC pop_options

@@ -1,0 +1,25 @@
+#include "simd.h"
+
+#include <cstdlib>
+#include <cstring>
+
+namespace tessera {
+
+static SimdLevel detect() {
+  const char* env = std::getenv("TESSERA_SIMD");
+  if (env && (std::strcmp(env, "sse2") == 0 || std::strcmp(env, "SSE2") == 0)) return SimdLevel::SSE2;
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2")) return SimdLevel::AVX2;
+#endif
+  return SimdLevel::SSE2;
+}
+
+SimdLevel cpu_simd_level() {
+  static const SimdLevel level = detect();
+  return level;
+}
+
+const char* simd_level_name(SimdLevel level) { return level == SimdLevel::AVX2 ? "avx2" : "sse2"; }
+
+}  // namespace tessera
