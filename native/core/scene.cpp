@@ -136,7 +136,64 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
   if (glm::dot(si.ns, si.ng) < 0.0f) si.ns = -si.ns;
   si.back_face = glm::dot(ray.d, si.ng) > 0.0f;
   si.material = material_of(inst, mesh.slot(prim_id));
+  if (!mesh.corner_uvs.empty()) {
+    const vec2* uv = &mesh.corner_uvs[3 * size_t(prim_id)];
+    si.uv = b0 * uv[0] + hit.u * uv[1] + hit.v * uv[2];
+    const Material& m = materials[si.material];
+    if (m.normal_tex.valid()) apply_normal_map(si, m, v, uv, inst);
+  }
   return si;
+}
+
+// Tangent-space normal map (Blender's Normal Map node, tangent space): the
+// texel maps [0,1] to [-1,1] along (tangent, bitangent, normal); the tangent
+// follows the UV's u direction across the triangle (pbrt-v4 eq. 6.x, dp/du).
+void Scene::apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,
+                             const Instance& inst) const {
+  const vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
+  const vec3 dp02 = v[0] - v[2], dp12 = v[1] - v[2];
+  const float det = duv02.x * duv12.y - duv02.y * duv12.x;
+  if (std::abs(det) < 1e-20f) return;
+  vec3 dpdu = (duv12.y * dp02 - duv02.y * dp12) / det;
+  if (!inst.identity) dpdu = glm::mat3(inst.to_world) * dpdu;
+  vec3 t = dpdu - si.ns * glm::dot(si.ns, dpdu);
+  const float len = glm::length(t);
+  if (!(len > 0.0f) || !std::isfinite(len)) return;
+  t /= len;
+  // Mirrored UVs flip the bitangent, as MikkTSpace's sign does.
+  vec3 b = glm::cross(si.ns, t) * (det < 0.0f ? -1.0f : 1.0f);
+  const vec4 c = textures[m.normal_tex.texture].eval(si.uv);
+  const vec3 n_ts = 2.0f * vec3(c) - vec3(1.0f);
+  vec3 n = n_ts.x * t + n_ts.y * b + n_ts.z * si.ns;
+  // Strength blends from the interpolated normal to the mapped one (Cycles svm_node_normal_map).
+  if (m.normal_strength != 1.0f) n = si.ns + (n - si.ns) * std::max(m.normal_strength, 0.0f);
+  const float nlen = glm::length(n);
+  if (!(nlen > 0.0f) || !std::isfinite(nlen)) return;
+  n /= nlen;
+  if (glm::dot(n, si.ng) < 0.0f) n = glm::normalize(n - si.ng * (1.001f * glm::dot(n, si.ng)));
+  if (is_finite(n)) si.ns = n;
+}
+
+float Scene::texture_value(const TextureRef& ref, vec2 uv) const {
+  const vec4 c = textures[ref.texture].eval(uv);
+  return ref.channel == 1 ? c.w : luminance(vec3(c));
+}
+
+Material Scene::textured_material(const Material& base, vec2 uv) const {
+  Material m = base;
+  if (m.base_color_tex.valid()) {
+    const vec4 c = textures[m.base_color_tex.texture].eval(uv);
+    m.base_color = m.base_color_tex.channel == 1 ? vec3(c.w) : vec3(c);
+  }
+  if (m.metallic_tex.valid()) m.metallic = texture_value(m.metallic_tex, uv);
+  if (m.roughness_tex.valid()) m.roughness = texture_value(m.roughness_tex, uv);
+  if (m.emission_tex.valid()) {
+    const vec4 c = textures[m.emission_tex.texture].eval(uv);
+    const vec3 e = m.emission_tex.channel == 1 ? vec3(c.w) : vec3(c);
+    m.emission_front = e * m.emission_strength_front;
+    m.emission_back = e * m.emission_strength_back;
+  }
+  return m;
 }
 
 size_t Scene::num_triangles() const {

@@ -9,6 +9,7 @@
 #include "lights.h"
 #include "material.h"
 #include "mesh.h"
+#include "texture.h"
 
 namespace tessera {
 
@@ -37,6 +38,7 @@ struct SurfaceInteraction {
   vec3 ns;        // unit shading normal, front side
   bool back_face; // the ray arrived at the back of the triangle
   uint32_t material;
+  vec2 uv{0.0f};  // the mesh's UV map, where a material needs it
 };
 
 class Scene {
@@ -45,6 +47,7 @@ class Scene {
   std::vector<Instance> instances;
   std::vector<uint32_t> instance_materials;  // per instance: material index per slot
   std::vector<Material> materials;           // materials[0] is the default material
+  std::vector<Texture> textures;
   std::vector<Light> lights;
   Background background;
   Camera camera;
@@ -60,7 +63,10 @@ class Scene {
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
   SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
   // The material parameters at a hit, textures applied.
-  Material material_at(const SurfaceInteraction& si) const { return materials[si.material]; }
+  Material material_at(const SurfaceInteraction& si) const {
+    const Material& m = materials[si.material];
+    return m.has_textures() ? textured_material(m, si.uv) : m;
+  }
 
   const LightSampler& light_sampler() const { return light_sampler_; }
   AABB bounds() const { return tlas_.bounds(); }
@@ -74,6 +80,10 @@ class Scene {
     return slot < inst.num_slots ? instance_materials[inst.material_offset + slot] : 0;
   }
   std::vector<EmissiveTriangle> collect_emissive_triangles() const;
+  Material textured_material(const Material& m, vec2 uv) const;
+  void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,
+                        const Instance& inst) const;
+  float texture_value(const TextureRef& ref, vec2 uv) const;
   BVH tlas_;
   LightSampler light_sampler_;
 };

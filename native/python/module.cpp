@@ -165,9 +165,32 @@ PYBIND11_MODULE(_core, m) {
           },
           py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"))
       .def(
+          "add_texture",
+          [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension) {
+            if (pixels.ndim() != 3 || pixels.shape(2) != 4)
+              throw std::invalid_argument("texture pixels must be an array of shape (height, width, 4)");
+            Texture t;
+            t.height = int(pixels.shape(0));
+            t.width = int(pixels.shape(1));
+            const vec4* p = reinterpret_cast<const vec4*>(pixels.data());
+            t.texels.assign(p, p + size_t(t.width) * t.height);
+            t.interpolation = interpolation == "Closest" ? Texture::Interpolation::Closest
+                            : interpolation == "Cubic" || interpolation == "Smart" ? Texture::Interpolation::Cubic
+                            : Texture::Interpolation::Linear;
+            t.extension = extension == "EXTEND" ? Texture::Extension::Extend
+                        : extension == "CLIP" ? Texture::Extension::Clip
+                        : extension == "MIRROR" ? Texture::Extension::Mirror
+                        : Texture::Extension::Repeat;
+            s.textures.push_back(std::move(t));
+            return s.textures.size() - 1;
+          },
+          py::arg("pixels"), py::arg("interpolation") = "Linear", py::arg("extension") = "REPEAT",
+          "Adds an image texture (linear RGBA, rows bottom to top); returns its index.")
+      .def(
           "add_material",
           [](Scene& s, std::vector<float> base_color, float metallic, float roughness, float specular, float ior,
-             float transmission, std::vector<float> emission_front, std::vector<float> emission_back) {
+             float transmission, std::vector<float> emission_front, std::vector<float> emission_back,
+             py::dict textures, float normal_strength, float emission_strength_front, float emission_strength_back) {
             Material m;
             m.base_color = to_vec3(base_color, "base_color");
             m.metallic = metallic;
@@ -177,12 +200,31 @@ PYBIND11_MODULE(_core, m) {
             m.transmission = transmission;
             m.emission_front = to_vec3(emission_front, "emission_front");
             m.emission_back = to_vec3(emission_back, "emission_back");
+            m.normal_strength = normal_strength;
+            m.emission_strength_front = emission_strength_front;
+            m.emission_strength_back = emission_strength_back;
+            // textures: {"base_color": (texture index, channel), ...}; channel 0 colour, 1 alpha.
+            for (auto item : textures) {
+              const std::string key = py::str(item.first);
+              auto ref = item.second.cast<std::pair<int, int>>();
+              if (ref.first < 0 || size_t(ref.first) >= s.textures.size())
+                throw std::out_of_range("add_material: no texture with index " + std::to_string(ref.first));
+              TextureRef r{ref.first, uint32_t(ref.second)};
+              if (key == "base_color") m.base_color_tex = r;
+              else if (key == "metallic") m.metallic_tex = r;
+              else if (key == "roughness") m.roughness_tex = r;
+              else if (key == "emission") m.emission_tex = r;
+              else if (key == "normal") m.normal_tex = r;
+              else throw std::invalid_argument("add_material: unknown textured input '" + key + "'");
+            }
             s.materials.push_back(m);
             return s.materials.size() - 1;
           },
           py::arg("base_color"), py::arg("metallic") = 0.0f, py::arg("roughness") = 0.5f, py::arg("specular") = 0.5f,
           py::arg("ior") = 1.45f, py::arg("transmission") = 0.0f,
-          py::arg("emission_front") = std::vector<float>{0, 0, 0}, py::arg("emission_back") = std::vector<float>{0, 0, 0})
+          py::arg("emission_front") = std::vector<float>{0, 0, 0}, py::arg("emission_back") = std::vector<float>{0, 0, 0},
+          py::arg("textures") = py::dict(), py::arg("normal_strength") = 1.0f,
+          py::arg("emission_strength_front") = 1.0f, py::arg("emission_strength_back") = 0.0f)
       .def(
           "add_light",
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,

@@ -53,10 +53,11 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False):
             continue
         if not inst.show_self and not inst.is_instance:
             continue  # an instancer that only shows its instances
-        mesh_id = mesh_cache.get(obj)
+        slot_materials = [mat_cache.get(slot.material) for slot in obj.material_slots]
+        need_uvs = any(mat_cache.needs_uvs(slot.material) for slot in obj.material_slots)
+        mesh_id = mesh_cache.get(obj, need_uvs)
         if mesh_id is None:
             continue
-        slot_materials = [mat_cache.get(slot.material) for slot in obj.material_slots]
         matrix = mesh.matrix_array(inst.matrix_world, obj.name, report)
         if matrix is None:
             continue

@@ -76,8 +76,8 @@ class MeshCache:
         self.ids = {}
         self.build_seconds = 0.0
 
-    def get(self, obj):
-        key = _mesh_key(obj)
+    def get(self, obj, need_uvs=False):
+        key = _mesh_key(obj) + (need_uvs,)
         if key in self.ids:
             return self.ids[key]
         mesh_id = None
@@ -91,7 +91,7 @@ class MeshCache:
                     if obj.type == 'MESH' and len(me.vertices) > 0:
                         self.report.warn(obj.name, f"Mesh object '{obj.name}' has no faces; it is not rendered.")
                 else:
-                    positions, indices, slots, normals, uvs = mesh_arrays(me)
+                    positions, indices, slots, normals, uvs = mesh_arrays(me, need_uvs)
                     t0 = time.perf_counter()
                     mesh_id = self.scene.add_mesh(positions, indices, slots, normals, uvs)
                     self.build_seconds += time.perf_counter() - t0

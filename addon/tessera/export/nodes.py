@@ -56,6 +56,7 @@ class Evaluator:
         self.report = report
         self.backfacing = backfacing
         self.image_average = image_average
+        self.texture_is_sampled = False  # set while reading an input the core samples the image for
 
     def warn(self, message):
         self.report.warn(self.owner, f"Material '{self.owner}': {message}")
@@ -106,7 +107,9 @@ class Evaluator:
             if self.image_average is not None:
                 avg = self.image_average(node)
                 if avg is not None:
-                    self.warn(f"image texture '{node.image.name}' is approximated by its average colour.")
+                    if not self.texture_is_sampled:
+                        self.warn(f"image texture '{node.image.name}' reaches an input through nodes Tessera "
+                                  f"does not sample per pixel; it is approximated by its average colour.")
                     return avg[3] if out.name == 'Alpha' else tuple(avg[:3])
             return (1.0, 0.0, 1.0) if out.name == 'Color' else 1.0  # Blender's missing-image pink
         self.warn(f"node '{node.name}' ({node.bl_idname}) is not supported; its output is taken as "
