@@ -21,6 +21,14 @@ float spot_attenuation(const Light& l, const vec3& dir_from_light) {
   return c;
 }
 
+// Bound on the rounding error, along the ray, of both ends of a shadow ray
+// from p to a point q on geometry, both in world space: p's offset origin
+// and the ray's transform into an instance's space (gamma(3) of the world
+// magnitudes each, with a factor 2 for the translation), and q's error.
+float shadow_end_error(const vec3& p, const vec3& q) {
+  return gamma(8) * (max_component(glm::abs(p)) + max_component(glm::abs(q))) * 2.0f;
+}
+
 float light_power(const Light& l, float scene_radius) {
   float lum = luminance(l.radiance);
   switch (l.type) {
@@ -92,6 +100,12 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
     if (dist2 <= 0.0f) return false;
     ls.dist = std::sqrt(dist2);
     ls.wi = d / ls.dist;
+    // The emitter is geometry: a shadow ray that reaches it is blocked by it.
+    // Stop short of it by a bound on the rounding of both ends: q here, the
+    // triangle as the BVH tests it (in its instance's space), and the shading
+    // point's offset origin (pbrt-v4 SpawnRayTo offsets both ends). Without it,
+    // far from the origin (1e3 and beyond) every shadow ray hit its own light.
+    ls.dist = std::max(0.0f, ls.dist - shadow_end_error(p, q));
     float cos_l = -glm::dot(ls.wi, t.n);  // > 0: we see the front face
     if (cos_l == 0.0f) return false;
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
