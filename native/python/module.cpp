@@ -291,6 +291,25 @@ PYBIND11_MODULE(_core, m) {
              s.commit();
              s.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
            })
+      .def(
+          "intersect",
+          [](const Scene& s, std::vector<float> o, std::vector<float> d, float tmax) -> py::object {
+            Ray r{to_vec3(o, "origin"), glm::normalize(to_vec3(d, "direction")), tmax};
+            Hit h;
+            if (!s.intersect(r, h)) return py::none();
+            SurfaceInteraction si = s.interaction(r, h);
+            return py::make_tuple(h.t, h.instance, s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim],
+                                  std::vector<float>{si.p.x, si.p.y, si.p.z}, std::vector<float>{si.ng.x, si.ng.y, si.ng.z},
+                                  si.back_face);
+          },
+          py::arg("origin"), py::arg("direction"), py::arg("tmax") = kInf,
+          "Closest hit after commit(): (t, instance, Blender triangle index, point, normal, back_face) or None.")
+      .def(
+          "occluded",
+          [](const Scene& s, std::vector<float> o, std::vector<float> d, float tmax) {
+            return s.occluded(to_vec3(o, "origin"), glm::normalize(to_vec3(d, "direction")), tmax);
+          },
+          py::arg("origin"), py::arg("direction"), py::arg("tmax") = kInf)
       .def_property_readonly("num_triangles", &Scene::num_triangles)
       .def_property_readonly("num_instanced_triangles", &Scene::num_instanced_triangles)
       .def_property_readonly("num_instances", [](const Scene& s) { return s.instances.size(); })
