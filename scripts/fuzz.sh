@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Fuzzes the scene builder / BVH / traversal (tests/fuzz/fuzz_scene.cpp) with
+# libFuzzer + AddressSanitizer + UBSan for a bounded time.
+#   scripts/fuzz.sh [seconds=45]
+# Needs clang and libclang-rt-14-dev (scripts/setup.sh installs them).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SECONDS_MAX=${1:-45}
+OUT=${FUZZ_BUILD_DIR:-build-fuzz}
+mkdir -p "$OUT/corpus"
+CXX=${FUZZ_CXX:-clang++}
+FLAGS="-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -Inative"
+SRCS=(native/core/bvh.cpp native/core/bvh4.cpp native/core/lights.cpp native/core/mesh.cpp native/core/scene.cpp
+      native/core/background.cpp native/core/sampling.cpp)
+# Sources the core gained since (SIMD, textures) are picked up when present.
+for extra in native/core/simd.cpp native/core/bvh8_avx2.cpp native/core/texture.cpp; do
+  if [ -f "$extra" ] && grep -q "$extra" CMakeLists.txt; then SRCS+=("$extra"); fi
+done
+echo "tessera fuzz: building $OUT/fuzz_scene"
+objs=()
+for src in tests/fuzz/fuzz_scene.cpp "${SRCS[@]}"; do
+  obj="$OUT/$(basename "$src" .cpp).o"
+  extra=""
+  case "$src" in *_avx2.cpp) extra="-mavx2 -mfma" ;; esac
+  $CXX $FLAGS $extra -c "$src" -o "$obj" &
+  objs+=("$obj")
+done
+wait
+$CXX $FLAGS "${objs[@]}" -ltbb -o "$OUT/fuzz_scene"
+echo "tessera fuzz: running for ${SECONDS_MAX} s"
+UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  "$OUT/fuzz_scene" -max_total_time="$SECONDS_MAX" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
+  -print_final_stats=1 -artifact_prefix="$OUT/" "$OUT/corpus" 2>&1 | tail -n 25
