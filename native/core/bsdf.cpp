@@ -18,10 +18,51 @@ vec3 interpolate_fresnel(float cos_ih, float ior, const vec3& cspec0) {
   return cspec0 * (1.0f - fh) + vec3(fh);
 }
 
+// Bends the shading normal n (towards the geometric normal ng, within their
+// plane) just enough that the mirror reflection of wo stays above the
+// geometric surface, as Cycles does for every closure (ensure_valid_reflection).
+// Without it, interpolated normals on coarse smooth meshes reflect and refract
+// into the surface and those paths are lost: glass and metal turn dark.
+vec3 ensure_valid_reflection(const vec3& ng, const vec3& wo, const vec3& n) {
+  const vec3 r = 2.0f * glm::dot(n, wo) * n - wo;
+  // The reflection may be as shallow as the incoming direction, but not below.
+  const float threshold = std::min(0.9f * glm::dot(ng, wo), 0.01f);
+  if (glm::dot(ng, r) >= threshold) return n;
+  // Frame with ng as z and n in the x-z plane; solve for the new normal's z^2.
+  const float n_dot_ng = glm::dot(n, ng);
+  const vec3 x_axis = glm::normalize(n - n_dot_ng * ng);
+  const float ix = glm::dot(wo, x_axis), iz = glm::dot(wo, ng);
+  const float ix2 = ix * ix, iz2 = iz * iz;
+  const float a = ix2 + iz2;
+  const float b = safe_sqrt(ix2 * (a - threshold * threshold));
+  const float c = iz * threshold + a;
+  const float fac = 0.5f / a;
+  const float z2_1 = fac * (b + c), z2_2 = fac * (c - b);
+  bool valid1 = z2_1 > 1e-5f && z2_1 <= 1.0f + 1e-5f;
+  bool valid2 = z2_2 > 1e-5f && z2_2 <= 1.0f + 1e-5f;
+  vec2 nn;
+  if (valid1 && valid2) {
+    // Both solve the equation: keep the one whose reflection is valid and shallowest.
+    const vec2 n1(safe_sqrt(1.0f - z2_1), safe_sqrt(z2_1)), n2(safe_sqrt(1.0f - z2_2), safe_sqrt(z2_2));
+    const float r1 = 2.0f * (n1.x * ix + n1.y * iz) * n1.y - iz;
+    const float r2 = 2.0f * (n2.x * ix + n2.y * iz) * n2.y - iz;
+    valid1 = r1 >= 1e-5f;
+    valid2 = r2 >= 1e-5f;
+    nn = (valid1 && valid2) ? (r1 < r2 ? n1 : n2) : (r1 > r2 ? n1 : n2);
+  } else if (valid1 || valid2) {
+    const float z2 = valid1 ? z2_1 : z2_2;
+    nn = vec2(safe_sqrt(1.0f - z2), safe_sqrt(z2));
+  } else {
+    return ng;
+  }
+  const vec3 out = nn.x * x_axis + nn.y * ng;
+  return is_finite(out) ? out : ng;
+}
+
 }  // namespace
 
 BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world)
-    : frame_(ns), ng_(ng), wo_world_(wo_world) {
+    : frame_(ensure_valid_reflection(ng, wo_world, ns)), ng_(ng), wo_world_(wo_world) {
   wo_ = frame_.to_local(wo_world);
   const float metallic = std::clamp(m.metallic, 0.0f, 1.0f);
   const float transmission = std::clamp(m.transmission, 0.0f, 1.0f) * (1.0f - metallic);
@@ -162,6 +203,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
     if (u_lobe < acc) break;
   }
   if (lobe < 0) return false;
+  s.kind = lobe == kDiffuse ? BSDFSample::kDiffuse : lobe == kGlassRefract ? BSDFSample::kTransmission : BSDFSample::kGlossy;
   vec3 wi;
   if (is_delta(lobe)) {
     if (lobe == kGlassRefract) {

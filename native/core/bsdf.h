@@ -18,6 +18,7 @@ struct BSDFSample {
   vec3 f;      // BSDF value (for a delta lobe: its weight / |cos wi|)
   float pdf;   // solid-angle density (for a delta lobe: the lobe's probability)
   bool delta;  // specular: no MIS with light sampling
+  enum Kind : uint8_t { kDiffuse, kGlossy, kTransmission } kind = kDiffuse;  // of the sampled lobe (bounce limits)
 };
 
 class BSDF {

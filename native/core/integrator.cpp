@@ -16,15 +16,14 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const bool found = scene.intersect(ray, hit);
     const float t_end = found ? hit.t : ray.tmax;
 
-    // Area lights are seen by scattered rays, not by the camera (as in
-    // Cycles), and do not block the ray.
+    // Area lights and point/spot lights with a radius are seen by scattered
+    // rays, not by the camera (as in Cycles), and do not block the ray.
     if (bounce > 0) {
-      float t_light;
+      float t_light, light_pdf;
       vec3 le;
-      int light = lights.intersect_area(ray.o, ray.d, t_end, &t_light, &le);
+      int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf);
       if (light >= 0) {
-        float cos_l = -glm::dot(ray.d, lights.lights()[light].direction);
-        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_area(light, t_light, cos_l));
+        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
         L += beta * le * w;
       }
     }

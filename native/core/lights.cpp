@@ -55,10 +55,12 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   world_ = (world && world->emits()) ? world : nullptr;
   std::vector<float> weights;
   weights.reserve(lights_.size() + triangles_.size() + 1);
-  area_lights_.clear();
+  hittable_lights_.clear();
   for (uint32_t i = 0; i < lights_.size(); ++i) {
-    weights.push_back(light_power(lights_[i], scene_radius));
-    if (lights_[i].type == LightType::Area) area_lights_.push_back(i);
+    const Light& l = lights_[i];
+    weights.push_back(light_power(l, scene_radius));
+    if (l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f))
+      hittable_lights_.push_back(i);
   }
   for (const EmissiveTriangle& t : triangles_)
     weights.push_back(kPi * t.area * (luminance(t.le_front) + luminance(t.le_back)));
@@ -205,23 +207,51 @@ float LightSampler::pdf_background(const vec3& wi) const {
   return selection_pmf(world_entry_) * world_->pdf(wi);
 }
 
-int LightSampler::intersect_area(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le) const {
+float LightSampler::pdf_sphere(uint32_t light, float dist, float cos_l) const {
+  const Light& l = lights_[light];
+  if (cos_l <= 0.0f || l.radius <= 0.0f) return 0.0f;
+  return selection_pmf(light) * dist * dist / (cos_l * kPi * l.radius * l.radius);
+}
+
+int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le, float* pdf) const {
   int best = -1;
-  for (uint32_t i : area_lights_) {
+  for (uint32_t i : hittable_lights_) {
     const Light& l = lights_[i];
-    float denom = glm::dot(d, l.direction);
-    if (denom >= 0.0f) continue;  // back side or parallel: area lights are one-sided
-    float t = glm::dot(l.position - o, l.direction) / denom;
-    if (!(t > 0.0f && t < tmax)) continue;
-    vec3 q = o + t * d - l.position;
-    float a = glm::dot(q, l.axis_u) / glm::dot(l.axis_u, l.axis_u);
-    float b = glm::dot(q, l.axis_v) / glm::dot(l.axis_v, l.axis_v);
-    bool inside = l.ellipse ? a * a + b * b <= 1.0f : (std::abs(a) <= 1.0f && std::abs(b) <= 1.0f);
-    if (!inside) continue;
-    tmax = t;
-    best = int(i);
-    *t_hit = t;
-    *le = l.radiance;
+    if (l.type == LightType::Area) {
+      float denom = glm::dot(d, l.direction);
+      if (denom >= 0.0f) continue;  // back side or parallel: area lights are one-sided
+      float t = glm::dot(l.position - o, l.direction) / denom;
+      if (!(t > 0.0f && t < tmax)) continue;
+      vec3 q = o + t * d - l.position;
+      float a = glm::dot(q, l.axis_u) / glm::dot(l.axis_u, l.axis_u);
+      float b = glm::dot(q, l.axis_v) / glm::dot(l.axis_v, l.axis_v);
+      bool inside = l.ellipse ? a * a + b * b <= 1.0f : (std::abs(a) <= 1.0f && std::abs(b) <= 1.0f);
+      if (!inside) continue;
+      tmax = t;
+      best = int(i);
+      *t_hit = t;
+      *le = l.radiance;
+      *pdf = pdf_area(i, t, -denom);
+    } else {
+      // The disk of the light's radius facing the ray origin.
+      const vec3 to_center = l.position - o;
+      const float dist_c = glm::length(to_center);
+      if (!(dist_c > l.radius)) continue;
+      const vec3 n = -to_center / dist_c;  // disk normal, towards the origin
+      const float denom = glm::dot(d, n);
+      if (denom >= 0.0f) continue;
+      const float t = glm::dot(l.position - o, n) / denom;
+      if (!(t > 0.0f && t < tmax)) continue;
+      const vec3 q = o + t * d - l.position;
+      if (glm::dot(q, q) > l.radius * l.radius) continue;
+      const float atten = l.type == LightType::Spot ? spot_attenuation(l, -to_center / dist_c) : 1.0f;
+      if (atten <= 0.0f) continue;
+      tmax = t;
+      best = int(i);
+      *t_hit = t;
+      *le = l.radiance * atten;
+      *pdf = pdf_sphere(i, t, -denom);
+    }
   }
   return best;
 }

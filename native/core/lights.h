@@ -58,11 +58,15 @@ class LightSampler {
   // emissive triangle (instance, prim) at distance dist with cosine cos_l.
   float pdf_triangle(uint32_t instance, uint32_t prim, float dist, float cos_l) const;
   float pdf_area(uint32_t light, float dist, float cos_l) const;
+  // Point and spot lights with a radius, seen as the disk facing the ray origin (Cycles 3.x).
+  float pdf_sphere(uint32_t light, float dist, float cos_l) const;
   float pdf_background(const vec3& wi) const;
 
-  // Nearest area light hit by the ray before tmax (BSDF-sampled rays see
-  // area lights, so they take part in MIS); returns the light index or -1.
-  int intersect_area(const vec3& o, const vec3& d, float tmax, float* t, vec3* le) const;
+  // Nearest area light, or point/spot light with a radius, hit by the ray
+  // before tmax (BSDF-sampled rays see them, so they take part in MIS);
+  // returns the light index or -1, with the hit distance, radiance and the
+  // light's solid-angle pdf for MIS.
+  int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf) const;
 
  private:
   float selection_pmf(uint32_t entry) const { return table_.pmf(entry); }
@@ -70,7 +74,7 @@ class LightSampler {
   std::vector<EmissiveTriangle> triangles_;
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
   std::vector<uint32_t> triangle_order_; // key rank -> triangle index
-  std::vector<uint32_t> area_lights_;
+  std::vector<uint32_t> hittable_lights_;  // area lights, and point/spot lights with a radius
   const Background* world_ = nullptr;
   uint32_t world_entry_ = ~0u;
   AliasTable table_;  // entries: lights, then triangles, then the world

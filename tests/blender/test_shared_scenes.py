@@ -35,3 +35,17 @@ def test_duplicate_faces_render_as_one_surface():
     c = compare(original, clean)
     assert np.all(c["mean_rel_diff"] < 0.01), c
     assert c["worst_block"] < 0.05, c
+
+
+# Issue 3, at the level each scene holds today (docs/compare has the full
+# table); modern_hall.blend is open (about 9% darker than Cycles, see the closing note).
+@pytest.mark.parametrize("name,bound", [("veach_mis.blend", 0.03), ("bunny_glass.blend", 0.03)])
+def test_more_shared_scenes_match_cycles(name, bound):
+    scene = open_scene(name)
+    set_size(scene, 96)
+    ours = render(scene, 'TESSERA', samples=128, bounces=8)
+    ref = render(scene, 'CYCLES', samples=128, bounces=8)
+    assert np.all(np.isfinite(ours)), "Tessera wrote NaN or Inf pixels"
+    c = compare(ours, ref)
+    print(name, {k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(c["mean_rel_diff"] < bound), f"{name}: mean per channel {c['mean_test']} vs Cycles {c['mean_ref']}"
