@@ -24,8 +24,10 @@ def render_region(scene, width, height):
     r = scene.render
     if not r.use_border:
         return 0, 0, width, height
-    x0, x1 = int(r.border_min_x * width + 0.5), int(r.border_max_x * width + 0.5)
-    y0, y1 = int(r.border_min_y * height + 0.5), int(r.border_max_y * height + 0.5)
+    # As Blender (and Cycles) size the border: float32 product, truncated.
+    f32 = np.float32
+    x0, x1 = int(f32(r.border_min_x) * f32(width)), int(f32(r.border_max_x) * f32(width))
+    y0, y1 = int(f32(r.border_min_y) * f32(height)), int(f32(r.border_max_y) * f32(height))
     if x1 <= x0 or y1 <= y0:
         return 0, 0, width, height
     return x0, y0, x1, y1
@@ -77,13 +79,16 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         settings = scene.tessera
         session = core.native.Session(scene_core, render_options(settings, region))
         x0, y0, x1, y1 = region
-        # With a border but no crop, Blender keeps the full frame and wants the region at its offset.
-        if scene.render.use_border and not scene.render.use_crop_to_border:
-            rx, ry = x0, y0
-        else:
-            rx, ry = 0, 0
+        # Blender's render result is the border only, with or without crop (it pastes
+        # the border into the full frame itself when not cropping): offset 0, 0.
         w, h = x1 - x0, y1 - y0
-        result = self.begin_result(rx, ry, w, h)
+        result = self.begin_result(0, 0, w, h)
+        if result is None or (result.resolution_x, result.resolution_y) != (w, h):
+            if result is not None:
+                self.end_result(result, cancel=True)
+            self.report({'ERROR'}, f"Tessera: Blender's render result is not the {w}x{h} region Tessera "
+                                   f"computed from the border; nothing was rendered.")
+            return
         layer = result.layers[0]
         total = settings.samples
         start = time.perf_counter()
