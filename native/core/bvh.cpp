@@ -325,6 +325,65 @@ struct FastBuilder {
   }
 
   static constexpr int kMaxSAHDepth = 32;
+  static constexpr uint32_t kParallelPartition = 65536;
+  static constexpr uint32_t kPartitionBlock = 16384;
+
+  // Stable partition of a large range in parallel (the top levels, where the
+  // serial in-place partition would leave the other threads idle): blocks
+  // count and bound their left/right references, a prefix sum gives each
+  // block its output offsets, the references scatter to a buffer and are
+  // copied back. The block size does not depend on the thread count, so the
+  // result is the same however many threads run.
+  template <typename LeftOf>
+  uint32_t parallel_partition(uint32_t begin, uint32_t end, const LeftOf& left_of, SSEBox& lbox, SSEBox& rbox,
+                              SSEBox& lcbox, SSEBox& rcbox) {
+    const uint32_t n = end - begin;
+    const uint32_t nblocks = (n + kPartitionBlock - 1) / kPartitionBlock;
+    struct Part {
+      uint32_t left = 0;
+      SSEBox lb, rb, lcb, rcb;
+    };
+    std::vector<Part> parts(nblocks);
+    const __m128 half = _mm_set1_ps(0.5f);
+    tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
+      Part& p = parts[k];
+      const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
+      for (uint32_t i = b0; i < b1; ++i) {
+        const __m128 c = _mm_mul_ps(centroid2(refs[i]), half);
+        if (left_of(refs[i])) {
+          ++p.left;
+          p.lb.grow(lo_of(refs[i]), refs[i].hi);
+          p.lcb.grow(c, c);
+        } else {
+          p.rb.grow(lo_of(refs[i]), refs[i].hi);
+          p.rcb.grow(c, c);
+        }
+      }
+    });
+    std::vector<uint32_t> loff(nblocks), roff(nblocks);
+    uint32_t total_left = 0;
+    for (uint32_t k = 0; k < nblocks; ++k) {
+      loff[k] = total_left;
+      total_left += parts[k].left;
+      lbox.grow(parts[k].lb), rbox.grow(parts[k].rb), lcbox.grow(parts[k].lcb), rcbox.grow(parts[k].rcb);
+    }
+    uint32_t r = total_left;
+    for (uint32_t k = 0; k < nblocks; ++k) {
+      roff[k] = r;
+      r += std::min(end, begin + (k + 1) * kPartitionBlock) - (begin + k * kPartitionBlock) - parts[k].left;
+    }
+    std::vector<PrimRef> tmp(n);
+    tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
+      uint32_t l = loff[k], rr = roff[k];
+      const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
+      for (uint32_t i = b0; i < b1; ++i) tmp[left_of(refs[i]) ? l++ : rr++] = refs[i];
+    });
+    tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
+      const uint32_t b0 = k * kPartitionBlock, b1 = std::min(n, b0 + kPartitionBlock);
+      std::copy(tmp.begin() + b0, tmp.begin() + b1, refs.begin() + begin + b0);
+    });
+    return begin + total_left;
+  }
 
   void build(uint32_t node_index, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox, int depth) {
     BVHNode& node = nodes[node_index];
@@ -360,6 +419,10 @@ struct FastBuilder {
           bi = std::min(std::max(bi, 0), maxb);
           return bi < pivot;
         };
+        if (opt.parallel && n > kParallelPartition) {
+          mid = parallel_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
+          have_boxes = true;
+        } else {
         // In-place partition, growing the children's boxes on the way.
         uint32_t i = begin, j = end;
         for (;;) {
@@ -380,6 +443,7 @@ struct FastBuilder {
         }
         mid = i;
         have_boxes = true;
+        }
       }
     }
     if (mid == begin || mid == end) {  // inseparable centroids or no split: by count

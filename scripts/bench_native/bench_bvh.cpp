@@ -407,7 +407,7 @@ void builders(const Config& cfg) {
   std::printf("Threads: %d, rays from a %dx%d image (same kinds as above). Medians of %d runs. Throughput in Mrays/s (closest hit for primary / diffuse / random, "
               "any hit for shadow). Sweep = full-sweep SAH (sorts every axis at every node).\n\n",
               nt, cfg.builder_res, cfg.builder_res, cfg.runs);
-  std::printf("| mesh | builder | traversal | build ms | SAH (binary) | SAH (BVH4) | primary | diffuse | random | shadow |\n"
+  std::printf("| mesh | builder | traversal | build ms | SAH (binary) | SAH (wide) | primary | diffuse | random | shadow |\n"
               "|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
   std::fflush(stdout);
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
@@ -454,7 +454,7 @@ void builders(const Config& cfg) {
         }
         std::printf("| %s | %s | %s | %.1f | %.2f | %.2f |%s\n", name.c_str(), v.label.c_str(),
                     order == TraversalOrder::Ordered ? "ordered" : "unordered", 1e3 * median(tb),
-                    mesh_sah_cost(mesh), sah_cost(mesh.bvh), cells.c_str());
+                    mesh_sah_cost(mesh), mesh.width() == 8 ? sah_cost(mesh.bvh8) : sah_cost(mesh.bvh), cells.c_str());
         std::fflush(stdout);
       }
     }
