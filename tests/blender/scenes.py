@@ -20,6 +20,9 @@ def principled(name, color=(0.8, 0.8, 0.8), **inputs):
     p = m.node_tree.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (*color, 1.0)
     for k, v in inputs.items():
+        # Blender 4.0 renamed Principled inputs; 3.x names are accepted here.
+        k = {"Specular": "Specular IOR Level", "Transmission": "Transmission Weight",
+             "Emission": "Emission Color"}.get(k, k) if k not in p.inputs else k
         p.inputs[k].default_value = v
     return m
 

@@ -57,6 +57,9 @@ def test_texture_through_unsupported_nodes_is_named_in_a_warning():
 @pytest.mark.parametrize("roughness", [0.0, 0.2, 0.5, 1.0])
 @pytest.mark.parametrize("metallic", [0.0, 1.0])
 def test_principled_roughness_ladder_matches_cycles(roughness, metallic):
+    if bpy.app.version >= (4, 0, 0):
+        pytest.skip("Blender 4.x's Principled BSDF is a different, energy-conserving model (principled v2); "
+                    "Tessera evaluates Cycles 3.x's, so this comparison with Cycles 4.x is expected to differ")
     scene = empty_scene()
     add_plane(20.0, material=principled("Floor", (0.5, 0.5, 0.5), Specular=0.0, Roughness=1.0))
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=64, ring_count=32)
