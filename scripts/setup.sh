@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(blender cmake g++ make pybind11-dev libglm-dev libtbb-dev python3-dev python3-numpy python3-pytest
-          googletest libgtest-dev clang libclang-rt-14-dev)
+          googletest libgtest-dev clang libclang-rt-14-dev python3-matplotlib)
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

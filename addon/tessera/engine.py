@@ -2,8 +2,6 @@
 background thread with the GIL released, shows progress, honours cancel and
 writes the pixels into Blender's render result in one bulk call."""
 
-import time
-
 import bpy
 import numpy as np
 
@@ -33,11 +31,41 @@ def render_region(scene, width, height):
     return x0, y0, x1, y1
 
 
+def format_seconds(s):
+    if s >= 60:
+        return f"{int(s // 60)}:{s % 60:04.1f}"
+    return f"{s:.1f} s"
+
+
+def live_status(session, total):
+    """Status text while rendering: samples, time, remaining, rays/s, error."""
+    done = session.samples_done
+    elapsed = session.elapsed_seconds
+    progress = session.progress
+    text = f"Tessera | Sample {done}/{total} | {format_seconds(elapsed)}"
+    if 0 < progress < 1:
+        text += f" | Remaining {format_seconds(elapsed * (1 - progress) / progress)}"
+    if elapsed > 0:
+        text += f" | {session.rays / elapsed / 1e6:.2f} Mrays/s"
+    if session.estimated_error > 0:
+        text += f" | Error {100 * session.estimated_error:.2f}%"
+    return text, progress
+
+
 def render_options(settings, region):
     opt = core.native.RenderOptions()
     opt.samples = settings.samples
     opt.max_bounces = settings.max_bounces
+    opt.max_diffuse_bounces = settings.max_diffuse_bounces
+    opt.max_glossy_bounces = settings.max_glossy_bounces
+    opt.max_transmission_bounces = settings.max_transmission_bounces
     opt.rr_depth = settings.rr_depth
+    opt.clamp_direct = settings.clamp_direct
+    opt.clamp_indirect = settings.clamp_indirect
+    opt.adaptive_threshold = settings.adaptive_threshold
+    opt.adaptive_min_samples = settings.adaptive_min_samples
+    opt.time_limit = settings.time_limit
+    opt.error_target = settings.error_target
     opt.seed = settings.seed
     opt.threads = settings.threads
     opt.tile_size = settings.tile_size
@@ -91,7 +119,6 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             return
         layer = result.layers[0]
         total = settings.samples
-        start = time.perf_counter()
         session.start()
         shown = 0
         while not session.wait(0.1):
@@ -101,9 +128,9 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                 self.end_result(result, cancel=True)
                 return
             done = session.samples_done
-            elapsed = time.perf_counter() - start
-            self.update_progress(done / max(1, total))
-            self.update_stats("", f"Tessera | Sample {done}/{total} | {elapsed:.1f} s")
+            text, progress = live_status(session, total)
+            self.update_progress(progress)
+            self.update_stats("", text)
             if done > shown:
                 self._write(layer, session.pixels())
                 self.update_result(result)
@@ -112,11 +139,15 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         self.end_result(result)
         rs = session.stats()
         rays_per_s = rs["rays"] / max(rs["seconds"], 1e-9)
-        summary = (f"Tessera: {width}x{height} region {w}x{h}, {rs['samples_done']} samples, "
+        pixel_samples_per_s = rs["pixel_samples"] / max(rs["seconds"], 1e-9)
+        mean_spp = rs["pixel_samples"] / max(1, w * h)
+        summary = (f"Tessera: {width}x{height} region {w}x{h}, {rs['samples_done']} samples "
+                   f"(mean {mean_spp:.1f} per pixel, stopped by {rs['stop_reason']}), "
                    f"export {stats['export_seconds']:.3f} s, BVH {stats['blas_build_seconds'] + stats['tlas_build_seconds']:.3f} s, "
                    f"render {rs['seconds']:.3f} s, {stats['triangles']} triangles "
                    f"({stats['instanced_triangles']} instanced, {stats['instances']} instances), "
-                   f"{rays_per_s / 1e6:.2f} Mrays/s")
+                   f"{pixel_samples_per_s / 1e6:.3f} Msamples/s, {rays_per_s / 1e6:.2f} Mrays/s, "
+                   f"estimated error {100 * rs['estimated_error']:.2f}%")
         if rs["invalid_samples"]:
             summary += f", {rs['invalid_samples']} NaN/Inf samples discarded"
         print(summary)
@@ -125,6 +156,9 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         last_render_stats.update(stats)
         last_render_stats.update(render_seconds=rs["seconds"], rays=rs["rays"], samples=rs["samples_done"],
                                  rays_per_second=rays_per_s, invalid_samples=rs["invalid_samples"],
+                                 pixel_samples=rs["pixel_samples"], samples_per_second=pixel_samples_per_s,
+                                 mean_samples=mean_spp, estimated_error=rs["estimated_error"],
+                                 stop_reason=rs["stop_reason"], active_pixels=rs["active_pixels"],
                                  warnings=list(report.warnings))
 
     @staticmethod

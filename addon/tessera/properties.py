@@ -2,19 +2,82 @@
 RenderOptions in engine.py and read where it is used."""
 
 import bpy
-from bpy.props import FloatProperty, IntProperty, PointerProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+# Speed against accuracy, in one choice. Each preset sets these fields; a
+# field changed by hand afterwards keeps its value (the preset shows 'CUSTOM'
+# only in the sense that it is not re-applied).
+PRESETS = {
+    'PREVIEW': dict(samples=32, adaptive_threshold=0.1, adaptive_min_samples=8, max_bounces=4,
+                    max_diffuse_bounces=2, max_glossy_bounces=2, max_transmission_bounces=4,
+                    rr_depth=2, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
+    'PRODUCTION': dict(samples=1024, adaptive_threshold=0.01, adaptive_min_samples=0, max_bounces=12,
+                       max_diffuse_bounces=4, max_glossy_bounces=4, max_transmission_bounces=12,
+                       rr_depth=3, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
+    'REFERENCE': dict(samples=16384, adaptive_threshold=0.0, adaptive_min_samples=0, max_bounces=64,
+                      max_diffuse_bounces=64, max_glossy_bounces=64, max_transmission_bounces=64,
+                      rr_depth=8, clamp_direct=0.0, clamp_indirect=0.0, time_limit=0.0, error_target=0.0),
+}
+
+
+def apply_preset(settings, name):
+    for key, value in PRESETS[name].items():
+        setattr(settings, key, value)
+
+
+def _preset_update(self, context):
+    if self.preset in PRESETS:
+        apply_preset(self, self.preset)
 
 
 class TesseraRenderSettings(bpy.types.PropertyGroup):
+    preset: EnumProperty(
+        name="Preset", description="Sets samples, adaptive sampling, bounces and clamping for a purpose",
+        items=[('CUSTOM', "Custom", "Settings as set by hand"),
+               ('PREVIEW', "Preview", "Fast and noisy: 32 samples, adaptive (threshold 0.1), 4 bounces, indirect clamp 10"),
+               ('PRODUCTION', "Production", "Up to 1024 samples, adaptive (threshold 0.01), Cycles' default bounces, indirect clamp 10"),
+               ('REFERENCE', "Reference", "Unbiased: 16384 uniform samples, 64 bounces, no clamping")],
+        default='CUSTOM', update=_preset_update)
     samples: IntProperty(
-        name="Samples", description="Number of samples per pixel",
+        name="Samples", description="Number of samples per pixel (the most any pixel gets with adaptive sampling, "
+        "a time limit or an error target)",
         default=64, min=1, soft_max=4096)
+    adaptive_threshold: FloatProperty(
+        name="Noise Threshold", description="Adaptive sampling: a pixel stops when its estimated error (Cycles' "
+        "measure) is below this; 0 disables adaptive sampling",
+        default=0.0, min=0.0, max=1.0, soft_max=0.2, precision=4, step=0.1)
+    adaptive_min_samples: IntProperty(
+        name="Min Samples", description="Adaptive sampling: samples every pixel gets before it may stop; 0 is automatic",
+        default=0, min=0, soft_max=4096)
+    time_limit: FloatProperty(
+        name="Time Limit", description="Stop rendering after this many seconds; 0 disables",
+        default=0.0, min=0.0, subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE')
+    error_target: FloatProperty(
+        name="Error Target", description="Stop when the estimated relative RMSE of the whole image is below this "
+        "(e.g. 0.02 = 2%); 0 disables",
+        default=0.0, min=0.0, max=1.0, precision=4, step=0.1)
     max_bounces: IntProperty(
-        name="Max Bounces", description="Total maximum number of bounces; 0 renders direct light only",
+        name="Total", description="Total maximum number of bounces; 0 renders direct light only",
         default=8, min=0, max=1024)
+    max_diffuse_bounces: IntProperty(
+        name="Diffuse", description="Maximum number of diffuse bounces",
+        default=12, min=0, max=1024)
+    max_glossy_bounces: IntProperty(
+        name="Glossy", description="Maximum number of glossy bounces (specular and glass reflection)",
+        default=12, min=0, max=1024)
+    max_transmission_bounces: IntProperty(
+        name="Transmission", description="Maximum number of transmission bounces (glass refraction)",
+        default=12, min=0, max=1024)
     rr_depth: IntProperty(
         name="Russian Roulette Depth", description="Bounce from which paths are ended at random by their throughput",
         default=3, min=1, max=1024)
+    clamp_direct: FloatProperty(
+        name="Direct Light", description="Clamp a sample's direct light (seen by the camera or lighting the first "
+        "hit) to this largest component; 0 disables",
+        default=0.0, min=0.0)
+    clamp_indirect: FloatProperty(
+        name="Indirect Light", description="Clamp a sample's indirect light to this largest component; 0 disables",
+        default=0.0, min=0.0)
     seed: IntProperty(
         name="Seed", description="Seed of the per-pixel random numbers; the same seed gives the same image",
         default=0, min=0)
@@ -29,11 +92,26 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         default=1.5, min=0.01, max=10.0, subtype='PIXEL')
 
 
+class TESSERA_OT_apply_preset(bpy.types.Operator):
+    """Set samples, adaptive sampling, bounces and clamping from a preset"""
+    bl_idname = "tessera.apply_preset"
+    bl_label = "Apply Tessera Preset"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    preset: EnumProperty(items=[(k, k.title(), "") for k in PRESETS])
+
+    def execute(self, context):
+        apply_preset(context.scene.tessera, self.preset)
+        return {'FINISHED'}
+
+
 def register():
     bpy.utils.register_class(TesseraRenderSettings)
+    bpy.utils.register_class(TESSERA_OT_apply_preset)
     bpy.types.Scene.tessera = PointerProperty(type=TesseraRenderSettings)
 
 
 def unregister():
     del bpy.types.Scene.tessera
+    bpy.utils.unregister_class(TESSERA_OT_apply_preset)
     bpy.utils.unregister_class(TesseraRenderSettings)

@@ -30,9 +30,18 @@ class TESSERA_PT_sampling(TesseraPanel, bpy.types.Panel):
         settings = context.scene.tessera
         if core.load_error:
             layout.label(text="Native core not loaded; see the Info editor for why", icon='ERROR')
+        layout.prop(settings, "preset")
         col = layout.column(align=True)
-        col.prop(settings, "samples")
+        col.prop(settings, "samples", text="Max Samples" if settings.adaptive_threshold > 0 else "Samples")
         col.prop(settings, "seed")
+        col = layout.column(align=True, heading="Adaptive")
+        col.prop(settings, "adaptive_threshold")
+        sub = col.column(align=True)
+        sub.active = settings.adaptive_threshold > 0
+        sub.prop(settings, "adaptive_min_samples")
+        col = layout.column(align=True)
+        col.prop(settings, "time_limit")
+        col.prop(settings, "error_target")
         layout.prop(settings, "filter_width")
 
 
@@ -44,9 +53,15 @@ class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         settings = context.scene.tessera
-        col = layout.column(align=True)
+        col = layout.column(align=True, heading="Max Bounces")
         col.prop(settings, "max_bounces")
-        col.prop(settings, "rr_depth")
+        col.prop(settings, "max_diffuse_bounces")
+        col.prop(settings, "max_glossy_bounces")
+        col.prop(settings, "max_transmission_bounces")
+        col = layout.column(align=True, heading="Clamping")
+        col.prop(settings, "clamp_direct")
+        col.prop(settings, "clamp_indirect")
+        layout.prop(settings, "rr_depth")
 
 
 class TESSERA_PT_performance(TesseraPanel, bpy.types.Panel):

@@ -36,3 +36,44 @@ float PixelFilter::warp(float u) const {
 }
 
 }  // namespace tessera
+
+namespace tessera {
+
+void Film::resize(size_t n) {
+  sum_.assign(n, vec3(0.0f));
+  sum_odd_.assign(n, vec3(0.0f));
+  count_.assign(n, 0);
+  active_.assign(n, 1);
+}
+
+float Film::pixel_error(size_t i) const {
+  const int n = count_[i];
+  const int n_odd = n / 2;
+  if (n_odd == 0) return kInf;
+  const vec3 full = sum_[i] / float(n), half = sum_odd_[i] / float(n_odd);
+  const vec3 d = glm::abs(full - half);
+  const float norm = std::sqrt(std::max(0.0f, full.x + full.y + full.z));
+  return (d.x + d.y + d.z) / (1e-4f + norm);
+}
+
+vec3 Film::mean_variance(size_t i) const {
+  const int n = count_[i];
+  const int n_odd = n / 2, n_even = n - n_odd;
+  if (n_odd == 0) return vec3(0.0f);
+  const vec3 odd = sum_odd_[i] / float(n_odd), even = (sum_[i] - sum_odd_[i]) / float(n_even);
+  const vec3 d = odd - even;
+  return d * d * (float(n_odd) * float(n_even) / (float(n) * float(n)));
+}
+
+double Film::estimated_relative_error() const {
+  double var = 0.0, mean = 0.0;
+  for (size_t i = 0; i < sum_.size(); ++i) {
+    const vec3 v = mean_variance(i), m = this->mean(i);
+    var += double(v.x) + v.y + v.z;
+    mean += double(m.x) + m.y + m.z;
+  }
+  if (mean <= 0.0) return 0.0;
+  return std::sqrt(var / (3.0 * sum_.size())) / (mean / (3.0 * sum_.size()));
+}
+
+}  // namespace tessera

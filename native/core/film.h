@@ -19,3 +19,44 @@ class PixelFilter {
 };
 
 }  // namespace tessera
+
+namespace tessera {
+
+// Per-pixel accumulation: the sum of all samples, the sum of the odd-indexed
+// samples (Cycles' "A" half, for the error estimate), the sample count and
+// whether adaptive sampling still wants samples. A pixel is only ever written
+// by the tile that owns it.
+class Film {
+ public:
+  void resize(size_t num_pixels);
+  size_t size() const { return sum_.size(); }
+
+  void add(size_t i, int sample, const vec3& L) {
+    sum_[i] += L;
+    if (sample & 1) sum_odd_[i] += L;
+  }
+  void set_count(size_t i, int n) { count_[i] = n; }
+  int count(size_t i) const { return count_[i]; }
+  bool active(size_t i) const { return active_[i] != 0; }
+  void deactivate(size_t i) { active_[i] = 0; }
+  vec3 mean(size_t i) const { return count_[i] > 0 ? sum_[i] / float(count_[i]) : vec3(0.0f); }
+
+  // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
+  // convergence_check, after Dammertz et al. 2010): |full - half| summed over
+  // RGB, normalised by sqrt of the RGB sum.
+  float pixel_error(size_t i) const;
+  // Estimated variance of the pixel's mean, per channel, from the two halves:
+  // Var(mean) = (mean_odd - mean_even)^2 n_odd n_even / n^2 (unbiased for
+  // independent samples). Zero below two samples.
+  vec3 mean_variance(size_t i) const;
+  // Estimated relative RMSE of the image: sqrt(mean of mean_variance over
+  // pixels and channels) / mean pixel value.
+  double estimated_relative_error() const;
+
+ private:
+  std::vector<vec3> sum_, sum_odd_;
+  std::vector<int> count_;
+  std::vector<uint8_t> active_;
+};
+
+}  // namespace tessera

@@ -4,11 +4,41 @@
 
 namespace tessera {
 
-vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters) {
+namespace {
+// Cycles' sample clamping (kernel_accum_clamp): scales a contribution down so
+// that its largest component is at most the limit; 0 is off.
+inline vec3 clamped(vec3 c, float limit) {
+  if (limit > 0.0f) {
+    const float m = max_component(c);
+    if (m > limit) c *= limit / m;
+  }
+  return c;
+}
+}  // namespace
+
+SceneFeatures scene_features(const Scene& scene) {
+  const LightSampler& lights = scene.light_sampler();
+  bool area = false;  // lights that scattered rays can hit (LightSampler::intersect_lights)
+  for (const Light& l : lights.lights())
+    area = area || l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f);
+  SceneFeatures f;
+  f.hittable_emitters = area || !lights.triangles().empty() || scene.background.emits();
+  f.emits = f.hittable_emitters || !lights.lights().empty();
+  return f;
+}
+
+vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
+        const SceneFeatures& features) {
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
   bool count_emission_fully = true;  // camera rays and delta bounces: no MIS
+  // Bounces of each kind so far (BSDFSample::Kind), for the per-kind limits.
+  int kind_bounces[3] = {0, 0, 0};
+  const int kind_limit[3] = {options.max_diffuse_bounces, options.max_glossy_bounces, options.max_transmission_bounces};
+  // Clamping as in Cycles: contributions of bounce 0 (what the camera sees
+  // emit, light sampled at the first hit) are direct, the rest indirect.
+  auto add = [&](int bounce, vec3 c) { L += clamped(c, bounce == 0 ? options.clamp_direct : options.clamp_indirect); };
 
   for (int bounce = 0;; ++bounce) {
     Hit hit;
@@ -24,14 +54,14 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf);
       if (light >= 0) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
-        L += beta * le * w;
+        add(bounce, beta * le * w);
       }
     }
 
     if (!found) {
       if (scene.background.emits()) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_background(ray.d));
-        L += beta * scene.background.Le(ray.d) * w;
+        add(bounce, beta * scene.background.Le(ray.d) * w);
       }
       break;
     }
@@ -45,9 +75,10 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         float cos_l = std::abs(glm::dot(ray.d, si.ng));
         w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(hit.instance, hit.prim, hit.t, cos_l));
       }
-      L += beta * le * w;
+      add(bounce, beta * le * w);
     }
     if (bounce > options.max_bounces) break;
+    if (kind_bounces[0] > kind_limit[0] || kind_bounces[1] > kind_limit[1] || kind_bounces[2] > kind_limit[2]) break;
 
     // Shade on the side the ray arrived from (Blender surfaces are two-sided).
     const vec3 ng = si.back_face ? -si.ng : si.ng;
@@ -67,7 +98,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         ++counters.rays;
         if (!scene.occluded(origin, ls.wi, tmax)) {
           float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
-          L += beta * f * ls.li * (w / ls.pdf);
+          add(bounce, beta * f * ls.li * (w / ls.pdf));
         }
       }
     }
@@ -79,6 +110,14 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
     prev_bsdf_pdf = bs.pdf;
     count_emission_fully = bs.delta;
+    ++kind_bounces[bs.kind];
+    // The next vertex would only add emission and stop: with nothing a ray
+    // can hit that emits, skip it (same image, one ray fewer per path).
+    if (!features.hittable_emitters &&
+        (bounce + 1 > options.max_bounces || kind_bounces[bs.kind] > kind_limit[bs.kind])) {
+      ++counters.skipped_rays;
+      break;
+    }
     ray.o = offset_ray_origin(si.p, si.p_error, ng, bs.wi);
     ray.d = bs.wi;
     ray.tmax = kInf;

@@ -10,8 +10,22 @@ namespace tessera {
 struct PathCounters {
   uint64_t rays = 0;          // closest-hit and shadow rays
   uint64_t invalid_samples = 0;  // NaN/Inf radiance dropped
+  uint64_t skipped_rays = 0;  // continuation rays not traced (SceneFeatures)
 };
 
-vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters);
+// What the scene needs the integrator to model, decided once per render
+// (RenderSession's constructor) from the committed scene.
+struct SceneFeatures {
+  bool emits = true;  // any light, emissive triangle or emitting world
+  // Whether a BSDF-sampled ray can hit an emitter (emissive triangles, area
+  // lights, point/spot lights with a radius, an emitting world). If not, the
+  // ray after a path's last bounce would only look for emission and is not
+  // traced.
+  bool hittable_emitters = true;
+};
+SceneFeatures scene_features(const Scene& scene);
+
+vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
+        const SceneFeatures& features = SceneFeatures());
 
 }  // namespace tessera

@@ -6,13 +6,35 @@
 namespace tessera {
 
 struct RenderOptions {
+  // Samples per pixel; with adaptive sampling, a time limit or an error
+  // target this is the most any pixel gets.
   int samples = 64;
-  int max_bounces = 8;   // like Cycles: 0 renders direct light only
-  int rr_depth = 3;      // Russian roulette from this bounce on
+  int max_bounces = 8;   // like Cycles: 0 renders direct light only (integrator.cpp)
+  // Per kind of scattering, as in Cycles: a path stops when its count of
+  // that kind of bounce exceeds the limit (integrator.cpp).
+  int max_diffuse_bounces = 1024;
+  int max_glossy_bounces = 1024;        // specular and glass reflection lobes
+  int max_transmission_bounces = 1024;  // glass refraction
+  int rr_depth = 3;      // Russian roulette from this bounce on (integrator.cpp)
+  // Cycles' sample clamping: a contribution's largest component is scaled
+  // down to this; direct = camera-visible emission and lighting at the first
+  // hit, indirect = the rest. 0: off (integrator.cpp).
+  float clamp_direct = 0.0f;
+  float clamp_indirect = 0.0f;
   uint32_t seed = 0;
   int threads = 0;       // 0: all cores
   int tile_size = 8;
   float filter_width = 1.5f;  // Blackman-Harris, in pixels (Cycles' default)
+  // Adaptive sampling (render.cpp): after each pass, a pixel with at least
+  // adaptive_min_samples (0: automatic) stops when its estimated error
+  // (Cycles' formula) is below adaptive_threshold. 0: off.
+  float adaptive_threshold = 0.0f;
+  int adaptive_min_samples = 0;
+  // Stop after this many seconds of rendering (render.cpp); 0: off.
+  double time_limit = 0.0;
+  // Stop when the estimated relative RMSE of the whole image is below this
+  // (render.cpp, RenderSession::estimated_error); 0: off.
+  float error_target = 0.0f;
   // Region of the full frame to render, in pixels from the bottom-left
   // (Blender's border render); x1 <= x0 means the whole frame.
   int region_x0 = 0, region_y0 = 0, region_x1 = 0, region_y1 = 0;

@@ -4,12 +4,14 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace tessera {
 
 RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
-    : scene_(scene), options_(options), filter_(options.filter_width) {
+    : scene_(scene), options_(options), filter_(options.filter_width), features_(scene_features(scene)) {
   const int w = scene.camera.width, h = scene.camera.height;
   x0_ = 0, y0_ = 0, x1_ = w, y1_ = h;
   if (options.region_x1 > options.region_x0 && options.region_y1 > options.region_y0) {
@@ -21,7 +23,7 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   options_.tile_size = std::max(1, options.tile_size);
   tiles_x_ = (width() + options_.tile_size - 1) / options_.tile_size;
   tiles_y_ = (height() + options_.tile_size - 1) / options_.tile_size;
-  sum_.assign(size_t(width()) * height(), vec3(0.0f));
+  film_.resize(size_t(width()) * height());
   display_.assign(size_t(width()) * height() * 4, 0.0f);
 }
 
@@ -32,67 +34,168 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
   const int px1 = std::min(px0 + ts, x1_), py1 = std::min(py0 + ts, y1_);
   for (int py = py0; py < py1; ++py) {
     for (int px = px0; px < px1; ++px) {
-      vec3& sum = sum_[size_t(py - y0_) * width() + (px - x0_)];
+      const size_t i = size_t(py - y0_) * width() + (px - x0_);
+      if (!film_.active(i)) continue;
       for (int s = sample_begin; s < sample_end; ++s) {
         // Pixel coordinates are those of the full frame, so a region render
         // reproduces the full render's pixels exactly.
-        Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed);
+        // Even and odd samples come from two independently scrambled Sobol
+        // streams, so the two halves of the film are independent estimates
+        // and their difference is an honest error estimate (one scrambled
+        // sequence split in two overestimates the error ~2x: its halves
+        // are anti-correlated).
+        Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s >> 1), options_.seed + (s & 1) * 0x9e3779b9U);
         vec2 offset = filter_.sample(sampler.get_2d());
         Ray ray = scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset);
-        sum += Li(scene_, ray, sampler, options_, counters);
+        film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
       }
+      film_.set_count(i, sample_end);
     }
   }
 }
 
+double RenderSession::elapsed_seconds() const {
+  if (!started_.load(std::memory_order_acquire)) return 0.0;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+bool RenderSession::out_of_time() const {
+  return options_.time_limit > 0.0 && elapsed_seconds() >= options_.time_limit;
+}
+
+double RenderSession::progress() const {
+  double p = double(samples_done_.load()) / std::max(1, options_.samples);
+  if (options_.time_limit > 0.0) p = std::max(p, elapsed_seconds() / options_.time_limit);
+  const double err = estimated_error_.load();
+  if (options_.error_target > 0.0f && err > 0.0) p = std::max(p, std::pow(options_.error_target / err, 2.0));
+  return std::clamp(p, 0.0, 1.0);
+}
+
 void RenderSession::render() {
-  using clock = std::chrono::steady_clock;
-  const auto start = clock::now();
+  start_ = std::chrono::steady_clock::now();
+  started_.store(true, std::memory_order_release);
   tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   tbb::enumerable_thread_specific<PathCounters> counters;
   const int num_tiles = tiles_x_ * tiles_y_;
   const int total = std::max(0, options_.samples);
+  const size_t num_pixels = film_.size();
+  // Adaptive sampling needs a few samples per half before its estimate
+  // means anything; automatic minimum: as Cycles, ~ 1/sqrt(threshold), at least 8.
+  const bool adaptive = options_.adaptive_threshold > 0.0f;
+  const int min_adaptive = options_.adaptive_min_samples > 0
+                               ? options_.adaptive_min_samples
+                               : std::max(8, int(std::ceil(1.0f / std::sqrt(std::max(options_.adaptive_threshold, 1e-8f)))));
+  // The image-wide error estimate is checked from this many samples on.
+  constexpr int kMinSamplesForErrorTarget = 8;
+  const char* stop_reason = "samples";
   int done = 0;
+  size_t active = num_pixels;
+  double seconds_per_pixel_sample = 0.0;  // measured, for sizing passes under a time limit
   // Passes of 1, 1, 2, 4, ... up to 16 samples: quick first feedback, then
-  // fewer display updates.
+  // fewer display updates. Without a time limit the pass boundaries depend
+  // only on the settings, never on threads or timing.
   int pass = 1;
+  if (!features_.emits) {
+    // Nothing emits: the image is black, no path needs tracing.
+    done = total;
+    std::lock_guard<std::mutex> lock(display_mutex_);
+    for (size_t i = 0; i < num_pixels; ++i) display_[4 * i + 3] = 1.0f;
+    samples_done_.store(done);
+  }
   while (done < total && !cancel_.load()) {
-    const int end = std::min(total, done + pass);
+    if (out_of_time()) {
+      stop_reason = "time limit";
+      break;
+    }
+    int this_pass = pass;
+    if (options_.time_limit > 0.0 && seconds_per_pixel_sample > 0.0) {
+      // Shrink the pass to what the remaining time allows.
+      const double remaining = options_.time_limit - elapsed_seconds();
+      const double fit = remaining / (seconds_per_pixel_sample * std::max<size_t>(active, 1));
+      this_pass = std::max(1, std::min(pass, int(fit)));
+    }
+    const int end = std::min(total, done + this_pass);
+    const auto pass_start = std::chrono::steady_clock::now();
+    std::atomic<bool> timed_out{false};
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<int>(0, num_tiles, 1), [&](const tbb::blocked_range<int>& r) {
         PathCounters& c = counters.local();
         for (int t = r.begin(); t != r.end(); ++t) {
           if (cancel_.load(std::memory_order_relaxed)) return;
+          // Tiles not started when the time is up keep their samples so far
+          // (every pixel has its own count, so the image stays consistent).
+          if (out_of_time()) {
+            timed_out.store(true, std::memory_order_relaxed);
+            return;
+          }
           render_tile(t, done, end, c);
         }
       });
     });
     if (cancel_.load()) break;
+    const double pass_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count();
+    if (!timed_out.load()) seconds_per_pixel_sample = pass_seconds / (double(end - done) * std::max<size_t>(active, 1));
     done = end;
+
+    // Adaptive sampling: stop the pixels whose own samples say they converged.
+    if (adaptive && done >= min_adaptive) {
+      for (size_t i = 0; i < num_pixels; ++i)
+        if (film_.active(i) && film_.pixel_error(i) < options_.adaptive_threshold) film_.deactivate(i);
+    }
+    uint64_t taken = 0;
+    active = 0;
+    for (size_t i = 0; i < num_pixels; ++i) {
+      taken += uint64_t(film_.count(i));
+      active += film_.active(i) ? 1 : 0;
+    }
+    const double err = film_.estimated_relative_error();
     {
       std::lock_guard<std::mutex> lock(display_mutex_);
-      const float inv = 1.0f / done;
-      for (size_t i = 0; i < sum_.size(); ++i) {
-        display_[4 * i + 0] = sum_[i].x * inv;
-        display_[4 * i + 1] = sum_[i].y * inv;
-        display_[4 * i + 2] = sum_[i].z * inv;
+      for (size_t i = 0; i < num_pixels; ++i) {
+        const vec3 m = film_.mean(i);
+        display_[4 * i + 0] = m.x;
+        display_[4 * i + 1] = m.y;
+        display_[4 * i + 2] = m.z;
         display_[4 * i + 3] = 1.0f;
       }
     }
+    PathCounters all;
+    for (const PathCounters& c : counters) all.rays += c.rays;
+    rays_.store(all.rays);
+    pixel_samples_.store(taken);
+    estimated_error_.store(err);
     samples_done_.store(done);
+    if (timed_out.load() || (options_.time_limit > 0.0 && out_of_time() && done < total)) {
+      stop_reason = "time limit";
+      break;
+    }
+    if (options_.error_target > 0.0f && done >= kMinSamplesForErrorTarget && err < options_.error_target) {
+      stop_reason = "error target";
+      break;
+    }
+    if (active == 0) {
+      stop_reason = "noise threshold";
+      break;
+    }
     if (done > 1) pass = std::min(pass * 2, 16);
   }
   PathCounters all;
   for (const PathCounters& c : counters) {
     all.rays += c.rays;
     all.invalid_samples += c.invalid_samples;
+    all.skipped_rays += c.skipped_rays;
   }
   std::lock_guard<std::mutex> lock(display_mutex_);
-  stats_.seconds = std::chrono::duration<double>(clock::now() - start).count();
+  stats_.seconds = elapsed_seconds();
   stats_.rays = all.rays;
   stats_.invalid_samples = all.invalid_samples;
+  stats_.skipped_rays = all.skipped_rays;
   stats_.samples_done = done;
+  stats_.pixel_samples = pixel_samples_.load();
+  stats_.estimated_error = estimated_error_.load();
+  stats_.active_pixels = active;
   stats_.cancelled = cancel_.load();
+  stats_.stop_reason = stats_.cancelled ? "cancelled" : stop_reason;
 }
 
 std::vector<float> RenderSession::pixels() const {

@@ -2,9 +2,13 @@
 // in passes of a few samples each, so that the display fills in and a cancel
 // is seen within one tile. Every (pixel, sample) has its own random stream and
 // every pixel sums its samples in order: the image does not depend on the
-// thread count or the tile order.
+// thread count or the tile order. Adaptive sampling, the time limit and the
+// error target are decided between passes (RenderSession::render); adaptive
+// sampling decides per pixel from that pixel's own samples, at pass
+// boundaries that do not depend on threads, so it is deterministic too.
 #pragma once
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <vector>
 #include "film.h"
@@ -16,7 +20,14 @@ struct RenderStats {
   double seconds = 0.0;
   uint64_t rays = 0;
   uint64_t invalid_samples = 0;
-  int samples_done = 0;
+  uint64_t skipped_rays = 0;   // not traced because the scene does not need them
+  int samples_done = 0;        // passes reached this many samples per pixel
+  uint64_t pixel_samples = 0;  // samples taken, over all pixels
+  double estimated_error = 0.0;  // Film::estimated_relative_error at the end
+  size_t active_pixels = 0;    // pixels adaptive sampling had not stopped
+  // Why the render ended: "samples", "noise threshold" (every pixel
+  // converged), "error target", "time limit", "cancelled".
+  const char* stop_reason = "samples";
   bool cancelled = false;
 };
 
@@ -32,24 +43,40 @@ class RenderSession {
   int height() const { return y1_ - y0_; }
   int samples_done() const { return samples_done_.load(); }
   int samples_total() const { return options_.samples; }
+  // Live figures while rendering (as of the last finished pass).
+  double elapsed_seconds() const;
+  double estimated_error() const { return estimated_error_.load(); }
+  uint64_t pixel_samples() const { return pixel_samples_.load(); }
+  uint64_t rays() const { return rays_.load(); }
+  // Fraction done, 0..1: the largest of samples, time and (from the error
+  // falling as 1/sqrt(samples)) error target progress.
+  double progress() const;
   // RGBA of the region, rows bottom to top, as of the last finished pass.
   std::vector<float> pixels() const;
   RenderStats stats() const;
 
  private:
+  // Renders samples [sample_begin, sample_end) of the tile's active pixels.
   void render_tile(int tile, int sample_begin, int sample_end, PathCounters& counters);
+  bool out_of_time() const;
 
   const Scene& scene_;
   RenderOptions options_;
   PixelFilter filter_;
+  SceneFeatures features_;
   int x0_, y0_, x1_, y1_;
   int tiles_x_, tiles_y_;
-  std::vector<vec3> sum_;  // per pixel, sum of sample radiance
+  Film film_;
 
   mutable std::mutex display_mutex_;
   std::vector<float> display_;  // RGBA means after the last pass
   std::atomic<bool> cancel_{false};
   std::atomic<int> samples_done_{0};
+  std::atomic<double> estimated_error_{0.0};
+  std::atomic<uint64_t> pixel_samples_{0};
+  std::atomic<uint64_t> rays_{0};
+  std::atomic<bool> started_{false};
+  std::chrono::steady_clock::time_point start_;
   RenderStats stats_;
 };
 

@@ -85,7 +85,12 @@ class PySession {
     d["seconds"] = s.seconds;
     d["rays"] = s.rays;
     d["invalid_samples"] = s.invalid_samples;
+    d["skipped_rays"] = s.skipped_rays;
     d["samples_done"] = s.samples_done;
+    d["pixel_samples"] = s.pixel_samples;
+    d["estimated_error"] = s.estimated_error;
+    d["active_pixels"] = s.active_pixels;
+    d["stop_reason"] = std::string(s.stop_reason);
     d["cancelled"] = s.cancelled;
     return d;
   }
@@ -107,7 +112,16 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init<>())
       .def_readwrite("samples", &RenderOptions::samples)
       .def_readwrite("max_bounces", &RenderOptions::max_bounces)
+      .def_readwrite("max_diffuse_bounces", &RenderOptions::max_diffuse_bounces)
+      .def_readwrite("max_glossy_bounces", &RenderOptions::max_glossy_bounces)
+      .def_readwrite("max_transmission_bounces", &RenderOptions::max_transmission_bounces)
       .def_readwrite("rr_depth", &RenderOptions::rr_depth)
+      .def_readwrite("clamp_direct", &RenderOptions::clamp_direct)
+      .def_readwrite("clamp_indirect", &RenderOptions::clamp_indirect)
+      .def_readwrite("adaptive_threshold", &RenderOptions::adaptive_threshold)
+      .def_readwrite("adaptive_min_samples", &RenderOptions::adaptive_min_samples)
+      .def_readwrite("time_limit", &RenderOptions::time_limit)
+      .def_readwrite("error_target", &RenderOptions::error_target)
       .def_readwrite("seed", &RenderOptions::seed)
       .def_readwrite("threads", &RenderOptions::threads)
       .def_readwrite("tile_size", &RenderOptions::tile_size)
@@ -328,5 +342,10 @@ PYBIND11_MODULE(_core, m) {
       .def("pixels", &PySession::pixels, "RGBA float32 array (height, width, 4), rows bottom to top.")
       .def("stats", &PySession::stats)
       .def_property_readonly("samples_done", [](PySession& p) { return p.session().samples_done(); })
-      .def_property_readonly("samples_total", [](PySession& p) { return p.session().samples_total(); });
+      .def_property_readonly("samples_total", [](PySession& p) { return p.session().samples_total(); })
+      .def_property_readonly("elapsed_seconds", [](PySession& p) { return p.session().elapsed_seconds(); })
+      .def_property_readonly("progress", [](PySession& p) { return p.session().progress(); })
+      .def_property_readonly("estimated_error", [](PySession& p) { return p.session().estimated_error(); })
+      .def_property_readonly("pixel_samples", [](PySession& p) { return p.session().pixel_samples(); })
+      .def_property_readonly("rays", [](PySession& p) { return p.session().rays(); });
 }

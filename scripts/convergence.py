@@ -1,0 +1,265 @@
+"""Error against time for Tessera and Cycles, and how honest Tessera's error
+estimate is. Run inside Blender:
+
+    blender -b --factory-startup --python scripts/convergence.py -- \
+        /work/shared/scenes/cornell_mcguire.blend [more .blend] [--width 160] \
+        [--ladder 4 16 64 256] [--ref-samples 1024] [--bounce-ladder 0 1 2 4 8] [--bounce-samples 64] \
+        [--adaptive-scenes veach_mis.blend modern_hall.blend] [--adaptive-budget-samples 64] \
+        [--out docs/convergence]
+
+For every scene: a high-sample reference per engine (same bounces as the
+ladder, 8 unless --bounces), then a ladder of sample counts and, separately, of
+max bounces, each render measured against its own engine's reference and the
+other engine's. Per run: wall time of the whole render call (export/sync, BVH,
+render; both engines alike), RMSE and relative MSE (mean of (x - r)^2 /
+(r^2 + 0.01)); for Tessera also its own estimated relative error and the true
+relative RMSE (RMSE / mean of the reference), whose ratio shows how honest the
+estimate is. Efficiency = 1 / (MSE x time). The Tessera/Cycles efficiency
+ratio is taken at Cycles' 64-sample error: the time Tessera needs for that MSE
+(log-log interpolation along its ladder) against Cycles' time at 64 samples.
+On the --adaptive-scenes, Tessera renders with the same time limit uniformly
+and with adaptive sampling, and both are compared with the reference.
+
+Writes OUT/convergence.csv, OUT/<scene>.png (log-log RMSE against time, both
+engines) and OUT/README.md (tables and the command)."""
+
+import argparse
+import csv
+import math
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "addon"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
+
+import tessera  # noqa: E402
+from helpers import render, set_size  # noqa: E402
+
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+ap = argparse.ArgumentParser()
+ap.add_argument("scenes", nargs="+")
+ap.add_argument("--width", type=int, default=160)
+ap.add_argument("--ladder", type=int, nargs="+", default=[4, 16, 64, 256])
+ap.add_argument("--ref-samples", type=int, default=1024)
+ap.add_argument("--bounces", type=int, default=8)
+ap.add_argument("--bounce-ladder", type=int, nargs="+", default=[0, 1, 2, 4, 8])
+ap.add_argument("--bounce-samples", type=int, default=64)
+ap.add_argument("--adaptive-scenes", nargs="*", default=["veach_mis.blend", "modern_hall.blend"])
+ap.add_argument("--adaptive-budget-samples", type=int, default=64,
+                help="time budget = wall time of a uniform Tessera render at this many samples")
+ap.add_argument("--adaptive-threshold", type=float, default=0.01)
+ap.add_argument("--out", default=os.path.join(HERE, "..", "docs", "convergence"))
+args = ap.parse_args(argv)
+
+if not hasattr(bpy.types.Scene, "tessera"):
+    tessera.register()
+from tessera import engine  # noqa: E402
+
+ENGINES = ("TESSERA", "CYCLES")
+SHORT = {"TESSERA": "tessera", "CYCLES": "cycles"}
+os.makedirs(args.out, exist_ok=True)
+
+
+def load(path):
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    set_size(scene, args.width)
+    return scene
+
+
+def run(path, eng, samples, bounces, seed=0, **tessera_settings):
+    scene = load(path)
+    for k, v in tessera_settings.items():
+        setattr(scene.tessera, k, v)
+    t0 = time.perf_counter()
+    img = render(scene, eng, samples=samples, bounces=bounces, seed=seed)[..., :3].astype(np.float64)
+    wall = time.perf_counter() - t0
+    st = dict(engine.last_render_stats) if eng == "TESSERA" else {}
+    return img, wall, st
+
+
+def metrics(img, ref):
+    d2 = (img - ref) ** 2
+    return {"rmse": float(np.sqrt(d2.mean())),
+            "relmse": float((d2 / (ref ** 2 + 0.01)).mean()),
+            "true_rel_error": float(np.sqrt(d2.mean()) / max(ref.mean(), 1e-12))}
+
+
+rows = []
+summary = []
+for path in args.scenes:
+    name = os.path.basename(path)
+    print(f"convergence: {name}", flush=True)
+    refs = {}
+    for eng in ENGINES:
+        img, wall, st = run(path, eng, args.ref_samples, args.bounces, seed=1000)
+        refs[eng] = img
+        print(f"  reference {eng}: {args.ref_samples} samples, {wall:.1f} s", flush=True)
+        rows.append(dict(scene=name, engine=eng, ladder="reference", samples=args.ref_samples, bounces=args.bounces,
+                         seconds=wall, render_seconds=st.get("render_seconds", ""),
+                         est_error=st.get("estimated_error", "")))
+
+    def measured(eng, ladder, samples, bounces, img, wall, st, **extra):
+        own = metrics(img, refs[eng])
+        other = metrics(img, refs["CYCLES" if eng == "TESSERA" else "TESSERA"])
+        row = dict(scene=name, engine=eng, ladder=ladder, samples=samples, bounces=bounces, seconds=wall,
+                   render_seconds=st.get("render_seconds", ""),
+                   mean_samples=st.get("mean_samples", samples),
+                   rmse_own=own["rmse"], relmse_own=own["relmse"], rmse_other=other["rmse"],
+                   relmse_other=other["relmse"], efficiency_own=1.0 / (own["rmse"] ** 2 * wall),
+                   true_rel_error=own["true_rel_error"], est_error=st.get("estimated_error", ""),
+                   est_over_true=(st["estimated_error"] / own["true_rel_error"]) if "estimated_error" in st else "")
+        row.update(extra)
+        rows.append(row)
+        print(f"  {ladder} {eng} spp={samples} bounces={bounces}: {wall:.2f} s, rmse own {own['rmse']:.5f} "
+              f"other {other['rmse']:.5f}" + (f", est/true {row['est_over_true']:.2f}" if row["est_over_true"] != "" else ""),
+              flush=True)
+        return row
+
+    ladder_rows = {e: [] for e in ENGINES}
+    for spp in args.ladder:
+        for eng in ENGINES:  # alternate engines so machine load hits both alike
+            img, wall, st = run(path, eng, spp, args.bounces)
+            ladder_rows[eng].append(measured(eng, "samples", spp, args.bounces, img, wall, st))
+    bounce_rows = {e: [] for e in ENGINES}
+    for b in args.bounce_ladder:
+        for eng in ENGINES:
+            img, wall, st = run(path, eng, args.bounce_samples, b)
+            bounce_rows[eng].append(measured(eng, "bounces", args.bounce_samples, b, img, wall, st))
+
+    # Efficiency ratio at Cycles' 64-sample error (own references).
+    ratio = None
+    c64 = next((r for r in ladder_rows["CYCLES"] if r["samples"] == 64), None)
+    if c64:
+        target = c64["rmse_own"] ** 2
+        pts = sorted((r["rmse_own"] ** 2, r["seconds"]) for r in ladder_rows["TESSERA"])
+        lt = None
+        for (m1, t1), (m2, t2) in zip(pts, pts[1:]):
+            if m1 <= target <= m2 and m2 > m1:
+                f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
+                lt = math.log(t1) + f * (math.log(t2) - math.log(t1))
+        if lt is None:  # outside the ladder: extrapolate from the nearest pair
+            (m1, t1), (m2, t2) = (pts[0], pts[1]) if target < pts[0][0] else (pts[-2], pts[-1])
+            f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
+            lt = math.log(t1) + f * (math.log(t2) - math.log(t1))
+        ratio = c64["seconds"] / math.exp(lt)
+
+    # Adaptive against uniform, same time budget.
+    adaptive = None
+    if name in args.adaptive_scenes:
+        _, budget_wall, st = run(path, "TESSERA", args.adaptive_budget_samples, args.bounces)
+        budget = st["render_seconds"]
+        res = {}
+        for label, thr in (("uniform", 0.0), ("adaptive", args.adaptive_threshold)):
+            img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, time_limit=budget,
+                                adaptive_threshold=thr, adaptive_min_samples=0)
+            res[label] = measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st, time_limit=budget)
+        adaptive = (budget, res["uniform"], res["adaptive"])
+
+    summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive))
+
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+        for eng, color in (("TESSERA", "tab:blue"), ("CYCLES", "tab:red")):
+            rs = ladder_rows[eng]
+            t = [r["seconds"] for r in rs]
+            axes[0].loglog(t, [r["rmse_own"] for r in rs], "o-", color=color, label=f"{eng.title()} vs own reference")
+            axes[0].loglog(t, [r["rmse_other"] for r in rs], "x--", color=color, alpha=0.6,
+                           label=f"{eng.title()} vs other's reference")
+            for r in rs:
+                axes[0].annotate(str(r["samples"]), (r["seconds"], r["rmse_own"]), fontsize=7)
+            bs = bounce_rows[eng]
+            axes[1].semilogy([r["bounces"] for r in bs], [r["rmse_own"] for r in bs], "o-", color=color,
+                             label=f"{eng.title()} vs own reference")
+            axes[1].semilogy([r["bounces"] for r in bs], [r["rmse_other"] for r in bs], "x--", color=color,
+                             alpha=0.6, label=f"{eng.title()} vs other's reference")
+        if adaptive:
+            for r, m in ((adaptive[1], "s"), (adaptive[2], "*")):
+                axes[0].loglog([r["seconds"]], [r["rmse_own"]], m, color="tab:green", markersize=9,
+                               label=f"Tessera {r['ladder']}, {adaptive[0]:.1f} s limit")
+        axes[0].set_xlabel("wall time of the render call, s")
+        axes[0].set_ylabel("RMSE")
+        axes[0].set_title(f"{name}: samples {args.ladder}, {args.bounces} bounces")
+        axes[0].legend(fontsize=7)
+        axes[1].set_xlabel("max bounces")
+        axes[1].set_ylabel("RMSE")
+        axes[1].set_title(f"{args.bounce_samples} samples")
+        axes[1].legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(os.path.join(args.out, name.replace(".blend", ".png")), dpi=90)
+        plt.close(fig)
+    except ImportError:
+        print("convergence: matplotlib not importable; no plot (apt-get install python3-matplotlib)")
+
+    # Write after every scene so a long run keeps what it has.
+    keys = []
+    for r in rows:
+        for k in r:
+            if k not in keys:
+                keys.append(k)
+    with open(os.path.join(args.out, "convergence.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+
+    cmd = "blender -b --factory-startup --python scripts/convergence.py -- " + " ".join(argv)
+    lines = ["# Convergence: error against time, Tessera and Cycles", "",
+             f"Blender {bpy.app.version_string}, {os.cpu_count()} cores shared with other work, width {args.width} px, "
+             f"{args.bounces} max bounces, references {args.ref_samples} samples (seed 1000; ladder seed 0). Time is the "
+             "wall time of the whole render call (sync/export, BVH, render, EXR write), so small sample counts "
+             "are dominated by fixed costs, more so for Cycles. MSE against a reference includes the reference's "
+             f"own noise (~ MSE(n) x n / {args.ref_samples}).", "",
+             "## Efficiency at Cycles' 64-sample error", "",
+             "Tessera/Cycles = Cycles' time at 64 samples / the time Tessera needs for the same MSE against its own "
+             "reference (= ratio of 1/(MSE x time) at equal MSE). Against its own reference each engine's error is its "
+             "noise; the 'vs other' columns add the difference between the engines.", "",
+             "| scene | Cycles 64 spp RMSE | Cycles 64 spp s | Tessera/Cycles efficiency | Tessera 64 spp RMSE own / vs Cycles ref | Cycles 64 spp RMSE vs Tessera ref |",
+             "|---|---|---|---|---|---|"]
+    for s in summary:
+        t64 = next((r for r in s["ladder"]["TESSERA"] if r["samples"] == 64), None)
+        if s["c64"] and t64:
+            lines.append(f"| {s['name']} | {s['c64']['rmse_own']:.5f} | {s['c64']['seconds']:.2f} | "
+                         f"{s['ratio']:.2f} | {t64['rmse_own']:.5f} / {t64['rmse_other']:.5f} | {s['c64']['rmse_other']:.5f} |")
+    lines += ["", "## Tessera's error estimate against the true error", "",
+              "Estimated relative RMSE (two independent half-sample streams, `Film::estimated_relative_error`) over "
+              "the true relative RMSE (RMSE / mean of Tessera's reference, which adds the reference's own noise).", "",
+              "| scene | " + " | ".join(f"{n} spp" for n in args.ladder) + " |",
+              "|---|" + "---|" * len(args.ladder)]
+    for s in summary:
+        lines.append(f"| {s['name']} | " + " | ".join(f"{r['est_over_true']:.2f}" for r in s["ladder"]["TESSERA"]) + " |")
+    lines += ["", "## Adaptive against uniform sampling at the same time budget (Tessera)", "",
+              f"Budget: Tessera's render time at {args.adaptive_budget_samples} uniform samples; both runs get it as "
+              f"time limit. Adaptive: noise threshold {args.adaptive_threshold}, automatic min samples.", "",
+              "| scene | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
+              "|---|---|---|---|---|---|---|"]
+    for s in summary:
+        if s["adaptive"]:
+            b, u, a = s["adaptive"]
+            lines.append(f"| {s['name']} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
+                         f"{a['rmse_own'] / u['rmse_own']:.2f} | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} |")
+    lines += ["", "## Runs", "",
+              "| scene | engine | ladder | samples | bounces | s | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for s in summary:
+        for part in ("ladder", "bounces"):
+            for eng in ENGINES:
+                for r in s[part][eng]:
+                    lines.append(f"| {s['name']} | {eng.title()} | {r['ladder']} | {r['samples']} | {r['bounces']} | "
+                                 f"{r['seconds']:.2f} | {r['rmse_own']:.5f} | {r['relmse_own']:.5f} | "
+                                 f"{r['rmse_other']:.5f} | {r['efficiency_own']:.3g} |")
+    lines += ["", "Plots: `<scene>.png` (left: RMSE against time over the sample ladder; right: RMSE against max "
+              "bounces). All runs: `convergence.csv`.", "", "Command:", "", "```sh", cmd, "```", ""]
+    with open(os.path.join(args.out, "README.md"), "w") as f:
+        f.write("\n".join(lines))
+
+print(open(os.path.join(args.out, "README.md")).read())
+sys.stdout.flush()
+os._exit(0)

@@ -1,0 +1,69 @@
+"""Speed/accuracy controls through Blender: presets, time limit, clamping,
+adaptive sampling (deterministic across thread counts), error target and the
+render log. Small renders; correctness only, never wall-clock."""
+
+import numpy as np
+import pytest
+
+from helpers import open_scene, render, set_size
+
+
+@pytest.fixture
+def cornell():
+    scene = open_scene("cornell_mcguire.blend")
+    set_size(scene, 48)
+    return scene
+
+
+def stats():
+    from tessera import engine
+    return engine.last_render_stats
+
+
+def test_presets_set_the_controls(cornell):
+    t = cornell.tessera
+    t.preset = 'PREVIEW'
+    assert t.adaptive_threshold > 0 and t.max_bounces == 4 and t.samples == 32
+    t.preset = 'REFERENCE'
+    assert t.adaptive_threshold == 0 and t.clamp_indirect == 0 and t.samples >= 4096
+    import bpy
+    bpy.ops.tessera.apply_preset(preset='PRODUCTION')
+    assert t.max_diffuse_bounces == 4 and t.clamp_indirect == 10
+
+
+def test_time_limit_stops_the_render(cornell):
+    cornell.tessera.time_limit = 0.5
+    render(cornell, 'TESSERA', samples=1_000_000)
+    s = stats()
+    assert s["stop_reason"] == "time limit"
+    assert 0 < s["samples"] < 1_000_000
+
+
+def test_clamping_bounds_pixel_values(cornell):
+    img = render(cornell, 'TESSERA', samples=16, bounces=0)
+    assert img[..., :3].max() > 2.0  # the emitter is seen directly
+    cornell.tessera.clamp_direct = 0.5
+    cornell.tessera.clamp_indirect = 0.25
+    img = render(cornell, 'TESSERA', samples=16, bounces=0)
+    # Per sample: emission and light sampling at the first hit, emission at the second.
+    assert img[..., :3].max() <= 2 * 0.5 + 0.25 + 1e-5
+
+
+def test_adaptive_sampling_stops_early_and_is_deterministic(cornell):
+    t = cornell.tessera
+    t.adaptive_threshold, t.adaptive_min_samples = 0.05, 16
+    a = render(cornell, 'TESSERA', samples=256, threads=1)
+    sa = dict(stats())
+    b = render(cornell, 'TESSERA', samples=256, threads=2)
+    sb = dict(stats())
+    assert np.array_equal(a, b)
+    assert sa["pixel_samples"] == sb["pixel_samples"]
+    assert 16 <= sa["mean_samples"] < 256 * 0.75
+
+
+def test_error_target_is_reached(cornell):
+    cornell.tessera.error_target = 0.2
+    render(cornell, 'TESSERA', samples=100_000)
+    s = stats()
+    assert s["stop_reason"] == "error target"
+    assert s["estimated_error"] < 0.2
