@@ -27,7 +27,7 @@ build-bench/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$TMP"
   echo '```'
   echo
   echo "Machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, $(. /etc/os-release; echo "$PRETTY_NAME"), $(g++ --version | head -1)."
-  echo "Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo 3), Tessera built Release -O3 without -march=native (SSE2 baseline)."
+  echo "Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo 3), Tessera built Release -O3 without -march=native (x86-64 baseline; the AVX2 BVH8 path is chosen at run time, here: $(grep -q avx2 /proc/cpuinfo && echo AVX2 || echo SSE2))."
   echo "Every figure is the median of the given number of runs in one process; the benchmark shares the two"
   echo "cores with other work, so single figures can move by 10-20% between invocations (the 2-thread rows"
   echo "in particular: on this VM two busy threads get about 1.2-1.7x one thread)."
