@@ -79,6 +79,8 @@ static bool trace_scene(const Scene& scene, const BVH& tlas, const vec3& o, cons
       if (!inst.identity) {
         lo = vec3(inst.to_local * vec4(r.o, 1.0f));
         ld = glm::mat3(inst.to_local) * r.d;
+        // A finite transform can have a non-finite inverse: such an instance is not hit.
+        if (!is_finite(lo) || !is_finite(ld)) continue;
       }
       if (kAnyHit) {
         if (occluded_mesh(mesh, lo, ld, r.tmax)) return true;
@@ -94,9 +96,15 @@ static bool trace_scene(const Scene& scene, const BVH& tlas, const vec3& o, cons
   });
 }
 
-bool Scene::intersect(const Ray& ray, Hit& hit) const { return trace_scene<false>(*this, tlas_, ray.o, ray.d, ray.tmax, &hit); }
+// Rays with a NaN or infinite origin or direction hit nothing (the traversal
+// kernels assume finite rays).
+bool Scene::intersect(const Ray& ray, Hit& hit) const {
+  if (!is_finite(ray.o) || !is_finite(ray.d)) return false;
+  return trace_scene<false>(*this, tlas_, ray.o, ray.d, ray.tmax, &hit);
+}
 
 bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {
+  if (!is_finite(o) || !is_finite(d)) return false;
   return trace_scene<true>(*this, tlas_, o, d, tmax, nullptr);
 }
 

@@ -99,8 +99,9 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
   const __m128 max_xt = _mm_max_ps(abs4(ax), _mm_max_ps(abs4(bx), abs4(cx)));
   const __m128 max_yt = _mm_max_ps(abs4(ay), _mm_max_ps(abs4(by), abs4(cy)));
   const __m128 max_zt = _mm_max_ps(abs4(az), _mm_max_ps(abs4(bz), abs4(cz)));
-  const __m128 delta_x = _mm_mul_ps(g(5), _mm_add_ps(max_xt, max_zt));
-  const __m128 delta_y = _mm_mul_ps(g(5), _mm_add_ps(max_yt, max_zt));
+  const __m128 max_z_raw = _mm_max_ps(abs4(az0), _mm_max_ps(abs4(bz0), abs4(cz0)));
+  const __m128 delta_x = _mm_mul_ps(g(5), _mm_add_ps(max_xt, _mm_mul_ps(abs4(r.sx), max_z_raw)));
+  const __m128 delta_y = _mm_mul_ps(g(5), _mm_add_ps(max_yt, _mm_mul_ps(abs4(r.sy), max_z_raw)));
   const __m128 delta_z = _mm_mul_ps(g(3), max_zt);
   const __m128 delta_e = _mm_mul_ps(_mm_set1_ps(2.0f),
       _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(2), max_xt), max_yt), _mm_mul_ps(delta_y, max_xt)),

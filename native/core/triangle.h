@@ -32,12 +32,15 @@ struct TriangleHit {
 // that may be the very surface the ray leaves, so it is not a hit: together
 // with offset_ray_origin this keeps rays from re-hitting their own surface.
 inline float triangle_t_error(float ax, float ay, float az, float bx, float by, float bz, float cx, float cy, float cz,
-                              float u, float v, float w, float inv_det) {
+                              float max_z_raw, float sx, float sy, float u, float v, float w, float inv_det) {
   const float max_xt = std::max(std::abs(ax), std::max(std::abs(bx), std::abs(cx)));
   const float max_yt = std::max(std::abs(ay), std::max(std::abs(by), std::abs(cy)));
   const float max_zt = std::max(std::abs(az), std::max(std::abs(bz), std::abs(cz)));
-  const float delta_x = gamma(5) * (max_xt + max_zt);
-  const float delta_y = gamma(5) * (max_yt + max_zt);
+  // x' = x - sx z uses the unscaled z: the error of x' does not grow with
+  // 1/|d| (instance-space rays are not unit length; with pbrt's max_zt here,
+  // every hit on a mesh scaled 1e4 by its transform was rejected).
+  const float delta_x = gamma(5) * (max_xt + std::abs(sx) * max_z_raw);
+  const float delta_y = gamma(5) * (max_yt + std::abs(sy) * max_z_raw);
   const float delta_z = gamma(3) * max_zt;
   const float delta_e = 2.0f * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
   const float max_e = std::max(std::abs(u), std::max(std::abs(v), std::abs(w)));
@@ -73,7 +76,9 @@ inline bool intersect_triangle(const vec3& p0, const vec3& p1, const vec3& p2, c
   hit.t = t_scaled * inv_det;
   hit.u = v * inv_det;
   hit.v = w * inv_det;
-  return hit.t > triangle_t_error(ax, ay, az, bx, by, bz, cx, cy, cz, u, v, w, inv_det) && hit.t < tmax;
+    const float max_z_raw = std::max(std::abs(a[s.kz]), std::max(std::abs(b[s.kz]), std::abs(c[s.kz])));
+  return hit.t > triangle_t_error(ax, ay, az, bx, by, bz, cx, cy, cz, max_z_raw, s.sx, s.sy, u, v, w, inv_det) &&
+         hit.t < tmax;
 }
 
 }  // namespace tessera

@@ -139,7 +139,6 @@ TEST(Numerics, CornellBoxAtEveryScaleRendersTheSameImage) {
   const vec3 m0 = base.mean();
   for (float scale : {1e-4f, 1e-2f, 1e2f, 1e4f}) {
     for (bool baked : {true, false}) {
-      if (!baked && scale > 1e3f) continue;  // DISABLED_TinyDirectionsInScaledInstances
       Scene s;
       if (baked) fixtures::build_cornell_box(s, 24, 24, mat4(1.0f), scale);
       else {
@@ -274,9 +273,6 @@ TEST(Numerics, NoSelfIntersectionOnFlatCurvedAndFineSurfacesAtEveryScale) {
       for (vec3 offset : {vec3(0.0f), vec3(1e5f, -1e5f, 0.5e5f)}) {
         if (offset.x > 0.0f && scale < 1.0f) continue;
         for (bool baked : {true, false}) {
-          // Instance scales above 1 inflate the triangle t error bound (rays
-          // are not normalised in instance space): DISABLED_TinyDirectionsInScaledInstances.
-          if (!baked && scale > 1.0f) continue;
           // The fine sphere of radius 1 has 0.012-wide triangles: 1.5 float
           // spacings at 1e5; it is not convex any more there.
           if (offset.x > 0.0f && shape.mesh == &unit_fine && scale < 1e2f) continue;
@@ -463,7 +459,7 @@ TEST(Numerics, WhiteFurnaceDocumentedLosses) {
 // gamma(5) * (max_xt + max(|sx|, |sy|) * max |z| unscaled) instead of
 // gamma(5) * (max_xt + max_zt), or normalise the local direction in
 // trace_scene (scene.cpp) and scale t back. Enable this test with the fix.
-TEST(Numerics, DISABLED_TinyDirectionsInScaledInstances) {
+TEST(Numerics, TinyDirectionsInScaledInstances) {
   const SphereMesh g = grid(64, 1.0f, vec3(0.0f));
   for (float scale : {1e3f, 1e4f, 1e5f}) {
     Scene s;

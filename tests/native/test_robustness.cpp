@@ -61,3 +61,28 @@ TEST(Robustness, FarFromTheOrigin) {
     EXPECT_EQ(self_occlusion(s, 2.0f, c, c + vec3(0.3f, 0.2f, 1.0f)), 0.0) << "offset " << offset;
   }
 }
+
+// Regression (found by the fuzzer, tests/fuzz/crashes): an instance whose
+// finite transform has a non-finite inverse made the local ray NaN and the
+// AVX2 traversal read out of bounds; NaN rays did the same.
+TEST(Robustness, NonFiniteRaysAndInverseTransformsHitNothing) {
+  Scene s;
+  fixtures::add_quad(s, vec3(-1, -1, 0), vec3(1, -1, 0), vec3(1, 1, 0), vec3(-1, 1, 0), 0);
+  mat4 degenerate(1.0f);
+  degenerate[0][0] = 1e-30f;  // finite, its inverse overflows
+  degenerate[1][1] = 1e38f;
+  s.add_instance(0, degenerate, {0});
+  s.commit();
+  Hit h;
+  const float nan = std::nanf("");
+  for (const Ray& r : {Ray{vec3(0.1f, 0.2f, 5.0f), vec3(0, 0, -1), kInf}, Ray{vec3(nan, 0, 5), vec3(0, 0, -1), kInf},
+                       Ray{vec3(0, 0, 5), vec3(nan, 0, -1), kInf}, Ray{vec3(0, 0, kInf), vec3(0, 0, -1), kInf}}) {
+    bool hit = s.intersect(r, h);
+    if (hit) {
+      EXPECT_TRUE(std::isfinite(h.t));
+      EXPECT_EQ(h.instance, 0u);  // only the well-formed quad can be hit
+    }
+    s.occluded(r.o, r.d, 10.0f);
+  }
+  EXPECT_FALSE(s.intersect(Ray{vec3(nan, 0, 5), vec3(0, 0, -1), kInf}, h));
+}
