@@ -50,9 +50,14 @@ ap.add_argument("--bounces", type=int, default=8)
 ap.add_argument("--bounce-ladder", type=int, nargs="+", default=[0, 1, 2, 4, 8])
 ap.add_argument("--bounce-samples", type=int, default=64)
 ap.add_argument("--adaptive-scenes", nargs="*", default=["veach_mis.blend", "modern_hall.blend"])
-ap.add_argument("--adaptive-budget-samples", type=int, default=64,
-                help="time budget = wall time of a uniform Tessera render at this many samples")
+ap.add_argument("--adaptive-budget-samples", type=int, nargs="+", default=[64],
+                help="time budgets = render time of a uniform Tessera render at these many samples")
 ap.add_argument("--adaptive-threshold", type=float, default=0.01)
+ap.add_argument("--adaptive-min-samples", type=int, default=0)
+ap.add_argument("--adaptive-seeds", type=int, default=1,
+                help="renders per method (seeds 0..N-1); the table shows sqrt of their mean MSE")
+ap.add_argument("--adaptive-only", action="store_true",
+                help="only the adaptive/uniform comparison (Tessera reference only, no ladders)")
 ap.add_argument("--out", default=os.path.join(HERE, "..", "docs", "convergence"))
 args = ap.parse_args(argv)
 
@@ -96,7 +101,7 @@ for path in args.scenes:
     name = os.path.basename(path)
     print(f"convergence: {name}", flush=True)
     refs = {}
-    for eng in ENGINES:
+    for eng in (("TESSERA",) if args.adaptive_only else ENGINES):
         img, wall, st = run(path, eng, args.ref_samples, args.bounces, seed=1000)
         refs[eng] = img
         print(f"  reference {eng}: {args.ref_samples} samples, {wall:.1f} s", flush=True)
@@ -106,7 +111,7 @@ for path in args.scenes:
 
     def measured(eng, ladder, samples, bounces, img, wall, st, **extra):
         own = metrics(img, refs[eng])
-        other = metrics(img, refs["CYCLES" if eng == "TESSERA" else "TESSERA"])
+        other = metrics(img, refs.get("CYCLES" if eng == "TESSERA" else "TESSERA", refs[eng]))
         row = dict(scene=name, engine=eng, ladder=ladder, samples=samples, bounces=bounces, seconds=wall,
                    render_seconds=st.get("render_seconds", ""),
                    mean_samples=st.get("mean_samples", samples),
@@ -122,12 +127,12 @@ for path in args.scenes:
         return row
 
     ladder_rows = {e: [] for e in ENGINES}
-    for spp in args.ladder:
+    for spp in ([] if args.adaptive_only else args.ladder):
         for eng in ENGINES:  # alternate engines so machine load hits both alike
             img, wall, st = run(path, eng, spp, args.bounces)
             ladder_rows[eng].append(measured(eng, "samples", spp, args.bounces, img, wall, st))
     bounce_rows = {e: [] for e in ENGINES}
-    for b in args.bounce_ladder:
+    for b in ([] if args.adaptive_only else args.bounce_ladder):
         for eng in ENGINES:
             img, wall, st = run(path, eng, args.bounce_samples, b)
             bounce_rows[eng].append(measured(eng, "bounces", args.bounce_samples, b, img, wall, st))
@@ -135,7 +140,7 @@ for path in args.scenes:
     # Efficiency ratio at Cycles' 64-sample error (own references).
     ratio = None
     c64 = next((r for r in ladder_rows["CYCLES"] if r["samples"] == 64), None)
-    if c64:
+    if c64 and len(ladder_rows["TESSERA"]) > 1:
         target = c64["rmse_own"] ** 2
         pts = sorted((r["rmse_own"] ** 2, r["seconds"]) for r in ladder_rows["TESSERA"])
         lt = None
@@ -150,20 +155,28 @@ for path in args.scenes:
         ratio = c64["seconds"] / math.exp(lt)
 
     # Adaptive against uniform, same time budget.
-    adaptive = None
+    adaptive = []
     if name in args.adaptive_scenes:
-        _, budget_wall, st = run(path, "TESSERA", args.adaptive_budget_samples, args.bounces)
-        budget = st["render_seconds"]
-        res = {}
-        for label, thr in (("uniform", 0.0), ("adaptive", args.adaptive_threshold)):
-            img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, time_limit=budget,
-                                adaptive_threshold=thr, adaptive_min_samples=0)
-            res[label] = measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st, time_limit=budget)
-        adaptive = (budget, res["uniform"], res["adaptive"])
+        for budget_spp in args.adaptive_budget_samples:
+            _, budget_wall, st = run(path, "TESSERA", budget_spp, args.bounces)
+            budget = st["render_seconds"]
+            res = {}
+            for label, thr in (("uniform", 0.0), ("adaptive", args.adaptive_threshold)):
+                runs = []
+                for seed in range(args.adaptive_seeds):
+                    img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, seed=seed, time_limit=budget,
+                                        adaptive_threshold=thr, adaptive_min_samples=args.adaptive_min_samples)
+                    runs.append(measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st,
+                                         time_limit=budget, seed=seed))
+                res[label] = dict(runs[0], rmse_own=math.sqrt(sum(r["rmse_own"] ** 2 for r in runs) / len(runs)),
+                                  mean_samples=sum(r["mean_samples"] for r in runs) / len(runs))
+            adaptive.append((budget, res["uniform"], res["adaptive"], budget_spp))
 
     summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive))
 
     try:
+        if args.adaptive_only:
+            raise ImportError
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
@@ -181,10 +194,10 @@ for path in args.scenes:
                              label=f"{eng.title()} vs own reference")
             axes[1].semilogy([r["bounces"] for r in bs], [r["rmse_other"] for r in bs], "x--", color=color,
                              alpha=0.6, label=f"{eng.title()} vs other's reference")
-        if adaptive:
-            for r, m in ((adaptive[1], "s"), (adaptive[2], "*")):
+        for a in adaptive:
+            for r, m in ((a[1], "s"), (a[2], "*")):
                 axes[0].loglog([r["seconds"]], [r["rmse_own"]], m, color="tab:green", markersize=9,
-                               label=f"Tessera {r['ladder']}, {adaptive[0]:.1f} s limit")
+                               label=f"Tessera {r['ladder']}, {a[0]:.1f} s limit")
         axes[0].set_xlabel("wall time of the render call, s")
         axes[0].set_ylabel("RMSE")
         axes[0].set_title(f"{name}: samples {args.ladder}, {args.bounces} bounces")
@@ -197,7 +210,8 @@ for path in args.scenes:
         fig.savefig(os.path.join(args.out, name.replace(".blend", ".png")), dpi=90)
         plt.close(fig)
     except ImportError:
-        print("convergence: matplotlib not importable; no plot (apt-get install python3-matplotlib)")
+        if not args.adaptive_only:
+            print("convergence: matplotlib not importable; no plot (apt-get install python3-matplotlib)")
 
     # Write after every scene so a long run keeps what it has.
     keys = []
@@ -236,14 +250,14 @@ for path in args.scenes:
     for s in summary:
         lines.append(f"| {s['name']} | " + " | ".join(f"{r['est_over_true']:.2f}" for r in s["ladder"]["TESSERA"]) + " |")
     lines += ["", "## Adaptive against uniform sampling at the same time budget (Tessera)", "",
-              f"Budget: Tessera's render time at {args.adaptive_budget_samples} uniform samples; both runs get it as "
-              f"time limit. Adaptive: noise threshold {args.adaptive_threshold}, automatic min samples.", "",
-              "| scene | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
-              "|---|---|---|---|---|---|---|"]
+              "Budget: Tessera's render time at N uniform samples; both runs get it as time limit. Adaptive: "
+              f"noise threshold {args.adaptive_threshold}, min samples {args.adaptive_min_samples or 'automatic'}. "
+              f"RMSE against Tessera's reference, sqrt of the mean MSE over {args.adaptive_seeds} seed(s).", "",
+              "| scene | budget (N spp) | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
+              "|---|---|---|---|---|---|---|---|"]
     for s in summary:
-        if s["adaptive"]:
-            b, u, a = s["adaptive"]
-            lines.append(f"| {s['name']} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
+        for b, u, a, n in s["adaptive"]:
+            lines.append(f"| {s['name']} | {n} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
                          f"{a['rmse_own'] / u['rmse_own']:.2f} | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} |")
     lines += ["", "## Runs", "",
               "| scene | engine | ladder | samples | bounces | s | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",

@@ -87,6 +87,9 @@ void RenderSession::render() {
                                : std::max(8, int(std::ceil(1.0f / std::sqrt(std::max(options_.adaptive_threshold, 1e-8f)))));
   // The image-wide error estimate is checked from this many samples on.
   constexpr int kMinSamplesForErrorTarget = 8;
+  constexpr int kAdaptiveConfirmations = 2;
+  std::vector<int> converged_passes(adaptive ? num_pixels : 0, 0);
+  std::vector<uint8_t> stop_now(adaptive ? num_pixels : 0, 0);
   const char* stop_reason = "samples";
   int done = 0;
   size_t active = num_pixels;
@@ -138,9 +141,35 @@ void RenderSession::render() {
     done = end;
 
     // Adaptive sampling: stop the pixels whose own samples say they converged.
+    // Adaptive sampling. A pixel stops when under the threshold at two pass
+    // boundaries in a row and so is every pixel around it (Cycles spreads
+    // non-convergence to neighbours the same way, film_adaptive_sampling_
+    // filter_x/y): one split of a pixel's samples is a one-degree-of-freedom
+    // estimate, and a pixel whose rare bright samples have not shown up yet
+    // would otherwise stop early and stay dark (biased low). Uses only the
+    // film at the pass boundary, so it does not depend on threads.
     if (adaptive && done >= min_adaptive) {
+      const int w = width(), h = height();
+      for (size_t i = 0; i < num_pixels; ++i) {
+        if (!film_.active(i)) continue;
+        converged_passes[i] = film_.pixel_error(i) < options_.adaptive_threshold ? std::min(converged_passes[i] + 1, 255) : 0;
+      }
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const size_t i = size_t(y) * w + x;
+          if (!film_.active(i)) continue;
+          bool all = true;
+          for (int dy = -1; dy <= 1 && all; ++dy)
+            for (int dx = -1; dx <= 1 && all; ++dx) {
+              const int nx = x + dx, ny = y + dy;
+              if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+              const size_t n = size_t(ny) * w + nx;
+              all = !film_.active(n) || converged_passes[n] >= kAdaptiveConfirmations;
+            }
+          if (all) stop_now[i] = 1;
+        }
       for (size_t i = 0; i < num_pixels; ++i)
-        if (film_.active(i) && film_.pixel_error(i) < options_.adaptive_threshold) film_.deactivate(i);
+        if (stop_now[i]) film_.deactivate(i), stop_now[i] = 0;
     }
     uint64_t taken = 0;
     active = 0;

@@ -51,7 +51,7 @@ def test_clamping_bounds_pixel_values(cornell):
 
 def test_adaptive_sampling_stops_early_and_is_deterministic(cornell):
     t = cornell.tessera
-    t.adaptive_threshold, t.adaptive_min_samples = 0.05, 16
+    t.adaptive_threshold, t.adaptive_min_samples = 0.1, 16
     a = render(cornell, 'TESSERA', samples=256, threads=1)
     sa = dict(stats())
     b = render(cornell, 'TESSERA', samples=256, threads=2)
