@@ -27,7 +27,8 @@ struct RenderOptions {
   float filter_width = 1.5f;  // Blackman-Harris, in pixels (Cycles' default)
   // Adaptive sampling (render.cpp): after each pass, a pixel with at least
   // adaptive_min_samples (0: automatic) stops when its estimated error
-  // (Cycles' formula) is below adaptive_threshold. 0: off.
+  // (Cycles' formula) has been below adaptive_threshold at two pass
+  // boundaries in a row, and its 3x3 neighbours' too. 0: off.
   float adaptive_threshold = 0.0f;
   int adaptive_min_samples = 0;
   // Stop after this many seconds of rendering (render.cpp); 0: off.

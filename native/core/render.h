@@ -4,8 +4,9 @@
 // every pixel sums its samples in order: the image does not depend on the
 // thread count or the tile order. Adaptive sampling, the time limit and the
 // error target are decided between passes (RenderSession::render); adaptive
-// sampling decides per pixel from that pixel's own samples, at pass
-// boundaries that do not depend on threads, so it is deterministic too.
+// sampling decides from the film at pass boundaries that do not depend on
+// threads (a pixel's own samples and its neighbours' convergence), so it is
+// deterministic too.
 #pragma once
 #include <atomic>
 #include <chrono>
