@@ -12,9 +12,10 @@ last_render_stats = {}
 
 
 def render_size(scene):
+    # Blender's own integer formula (BKE_render_resolution): res * pct // 100.
     r = scene.render
-    scale = r.resolution_percentage / 100.0
-    return max(1, int(r.resolution_x * scale)), max(1, int(r.resolution_y * scale))
+    pct = r.resolution_percentage
+    return max(1, r.resolution_x * pct // 100), max(1, r.resolution_y * pct // 100)
 
 
 def render_region(scene, width, height):
@@ -82,6 +83,18 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
     bl_use_postprocess = True
 
     def render(self, depsgraph):
+        # An exception escaping render() makes Blender save a black frame and
+        # exit 0; report it as an error instead, so that a headless render
+        # (and a render farm) sees the failure.
+        try:
+            self._render(depsgraph)
+        except Exception as e:  # noqa: BLE001 - every failure must reach the report
+            import traceback
+            traceback.print_exc()
+            self.report({'ERROR'}, f"Tessera failed to render: {type(e).__name__}: {e}. "
+                                   f"Please report this with the traceback printed above.")
+
+    def _render(self, depsgraph):
         if core.native is None:
             self.report({'ERROR'}, core.load_error)
             return

@@ -93,8 +93,10 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       vec3 f = bsdf.f(ls.wi) * std::abs(glm::dot(ls.wi, ns));
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
-        // Stop just short of the sampled light point, relative to its distance.
-        float tmax = std::isinf(ls.dist) ? kInf : ls.dist * (1.0f - 1e-4f);
+        // Stop just short of the sampled light point, relative to its distance,
+        // measured from the offset origin (far from the world origin the offset
+        // is not negligible next to the distance).
+        float tmax = std::isinf(ls.dist) ? kInf : (ls.dist - glm::dot(origin - si.p, ls.wi)) * (1.0f - 1e-4f);
         ++counters.rays;
         if (!scene.occluded(origin, ls.wi, tmax)) {
           float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
