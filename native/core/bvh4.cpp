@@ -1,6 +1,7 @@
 #include "bvh4.h"
 #include "bvh8.h"
 #include "simd_tri4.h"
+#include "wide_traverse.h"
 
 #include <algorithm>
 
@@ -145,10 +146,25 @@ inline int intersect_node(const BVH4Node& n, const Ray4& r, __m128& tnear) {
   return _mm_movemask_ps(_mm_cmple_ps(tnear, tfar));
 }
 
-constexpr int kStackSize = 256;
-struct StackEntry {
-  uint32_t ref;
-  float t;
+// BVH4 for wide_intersect / wide_occluded.
+struct Bvh4Traits {
+  static constexpr int kWidth = 4;
+  static constexpr int kStackSize = 256;
+  using Node = BVH4Node;
+  using Ray = Ray4;
+  static int test(const Node& n, const Ray& r, float* dist) {
+    __m128 tn;
+    const int mask = intersect_node(n, r, tn);
+    _mm_store_ps(dist, tn);
+    return mask;
+  }
+  static __m128 tri_tmax(const Ray& r) { return r.tmax; }
+  static void set_tmax(Ray& r, float t) { r.tmax = _mm_set1_ps(t); }
+  static void prefetch(const Node* nodes, uint32_t ref) {
+    const char* p = reinterpret_cast<const char*>(&nodes[ref]);
+    _mm_prefetch(p, _MM_HINT_T0);
+    _mm_prefetch(p + 64, _MM_HINT_T0);
+  }
 };
 
 }  // namespace
@@ -205,95 +221,7 @@ template <bool kOrdered>
 bool bvh4_intersect(const BVH4& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
   if (bvh.nodes.empty()) return false;
   Ray4 ray(o, d, tmax);
-  const BVH4Node* nodes = bvh.nodes.data();
-  const Tri4* tris = bvh.tris.data();
-  StackEntry stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  bool found = false;
-  float t_best = tmax;
-  for (;;) {
-    if (!bvh4_is_leaf(ref)) {
-      const BVH4Node& n = nodes[ref];
-      __m128 tn;
-      int mask = intersect_node(n, ray, tn);
-      if (mask != 0) {
-        alignas(16) float dist[4];
-        _mm_store_ps(dist, tn);
-        int first = __builtin_ctz(mask);
-        mask &= mask - 1;
-        if (mask == 0) {  // one child hit: descend without the stack
-          ref = n.child[first];
-          continue;
-        }
-        if (!kOrdered) {
-          // Stored order: push the others in reverse, descend into the first.
-          int lanes[4], k = 0;
-          for (int m = mask; m; m &= m - 1) lanes[k++] = __builtin_ctz(m);
-          for (int j = k - 1; j >= 0; --j) stack[sp++] = {n.child[lanes[j]], dist[lanes[j]]};
-          ref = n.child[first];
-          continue;
-        }
-        // Fetch the hit children's nodes while sorting.
-        for (int m = mask | (1 << first); m; m &= m - 1) {
-          const uint32_t c = n.child[__builtin_ctz(m)];
-          if (!bvh4_is_leaf(c)) {
-            _mm_prefetch(reinterpret_cast<const char*>(&nodes[c]), _MM_HINT_T0);
-            _mm_prefetch(reinterpret_cast<const char*>(&nodes[c]) + 64, _MM_HINT_T0);
-          }
-        }
-        // Nearest first: insertion sort of the (at most four) hit children by
-        // distance, farthest pushed first.
-        StackEntry e[4];
-        int k = 0;
-        e[k++] = {n.child[first], dist[first]};
-        for (int m = mask; m; m &= m - 1) {
-          const int c = __builtin_ctz(m);
-          StackEntry x{n.child[c], dist[c]};
-          int j = k++;
-          while (j > 0 && e[j - 1].t > x.t) {
-            e[j] = e[j - 1];
-            --j;
-          }
-          e[j] = x;
-        }
-        for (int j = k - 1; j > 0; --j) stack[sp++] = e[j];
-        ref = e[0].ref;
-        continue;
-      }
-    } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
-        __m128 t, u, v;
-        int mask = intersect_tri4(tris[b], ray.tri, ray.tmax, t, u, v);
-        if (mask == 0) continue;
-        alignas(16) float ts[4], us[4], vs[4];
-        _mm_store_ps(ts, t);
-        _mm_store_ps(us, u);
-        _mm_store_ps(vs, v);
-        // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
-        int best = -1;
-        for (int m = mask; m; m &= m - 1) {
-          const int lane = __builtin_ctz(m);
-          if (best < 0 || ts[lane] < ts[best]) best = lane;
-        }
-        t_best = ts[best];
-        hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
-        ray.tmax = _mm_set1_ps(t_best);
-        found = true;
-      }
-    }
-    // Pop, skipping entries farther than the nearest hit so far.
-    for (;;) {
-      if (sp == 0) {
-        tmax = t_best;
-        return found;
-      }
-      --sp;
-      if (stack[sp].t <= t_best) break;
-    }
-    ref = stack[sp].ref;
-  }
+  return wide_intersect<Bvh4Traits, kOrdered>(bvh.nodes.data(), bvh.tris.data(), ray, tmax, hit);
 }
 
 template bool bvh4_intersect<true>(const BVH4&, const vec3&, const vec3&, float&, BVH4Hit&);
@@ -302,32 +230,7 @@ template bool bvh4_intersect<false>(const BVH4&, const vec3&, const vec3&, float
 bool bvh4_occluded(const BVH4& bvh, const vec3& o, const vec3& d, float tmax) {
   if (bvh.nodes.empty()) return false;
   Ray4 ray(o, d, tmax);
-  const BVH4Node* nodes = bvh.nodes.data();
-  const Tri4* tris = bvh.tris.data();
-  uint32_t stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    if (!bvh4_is_leaf(ref)) {
-      const BVH4Node& n = nodes[ref];
-      __m128 tn;
-      int mask = intersect_node(n, ray, tn);
-      if (mask != 0) {
-        const int first = __builtin_ctz(mask);
-        for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
-        ref = n.child[first];
-        continue;
-      }
-    } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
-        __m128 t, u, v;
-        if (intersect_tri4(tris[b], ray.tri, ray.tmax, t, u, v)) return true;
-      }
-    }
-    if (sp == 0) return false;
-    ref = stack[--sp];
-  }
+  return wide_occluded<Bvh4Traits>(bvh.nodes.data(), bvh.tris.data(), ray);
 }
 
 }  // namespace tessera

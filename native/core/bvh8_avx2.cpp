@@ -16,6 +16,7 @@
 #pragma GCC target("avx2")
 
 #include "simd_tri4.h"
+#include "wide_traverse.h"
 
 namespace tessera {
 namespace {
@@ -62,18 +63,27 @@ inline int intersect_node8(const BVH8Node& n, const Ray8& r, __m256& tnear) {
   return _mm256_movemask_ps(_mm256_cmp_ps(tnear, tfar, _CMP_LE_OQ));
 }
 
-inline void prefetch_node(const BVH8Node* nodes, uint32_t ref) {
-  const char* p = reinterpret_cast<const char*>(&nodes[ref]);
-  _mm_prefetch(p, _MM_HINT_T0);
-  _mm_prefetch(p + 64, _MM_HINT_T0);
-  _mm_prefetch(p + 128, _MM_HINT_T0);
-  _mm_prefetch(p + 192, _MM_HINT_T0);
-}
-
-constexpr int kStackSize = 512;
-struct StackEntry {
-  uint32_t ref;
-  float t;
+// BVH8 for wide_intersect / wide_occluded.
+struct Bvh8Traits {
+  static constexpr int kWidth = 8;
+  static constexpr int kStackSize = 512;
+  using Node = BVH8Node;
+  using Ray = Ray8;
+  static int test(const Node& n, const Ray& r, float* dist) {
+    __m256 tn;
+    const int mask = intersect_node8(n, r, tn);
+    _mm256_store_ps(dist, tn);
+    return mask;
+  }
+  static __m128 tri_tmax(const Ray& r) { return r.tmax4; }
+  static void set_tmax(Ray& r, float t) { r.set_tmax(t); }
+  static void prefetch(const Node* nodes, uint32_t ref) {
+    const char* p = reinterpret_cast<const char*>(&nodes[ref]);
+    _mm_prefetch(p, _MM_HINT_T0);
+    _mm_prefetch(p + 64, _MM_HINT_T0);
+    _mm_prefetch(p + 128, _MM_HINT_T0);
+    _mm_prefetch(p + 192, _MM_HINT_T0);
+  }
 };
 
 }  // namespace
@@ -82,88 +92,7 @@ template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
   if (bvh.nodes.empty()) return false;
   Ray8 ray(o, d, tmax);
-  const BVH8Node* nodes = bvh.nodes.data();
-  const Tri4* tris = bvh.tris.data();
-  StackEntry stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  bool found = false;
-  float t_best = tmax;
-  for (;;) {
-    if (!bvh4_is_leaf(ref)) {
-      const BVH8Node& n = nodes[ref];
-      __m256 tn;
-      int mask = intersect_node8(n, ray, tn);
-      if (mask != 0) {
-        const int first = __builtin_ctz(mask);
-        mask &= mask - 1;
-        if (mask == 0) {  // one child hit: descend without the stack
-          ref = n.child[first];
-          continue;
-        }
-        alignas(32) float dist[8];
-        _mm256_store_ps(dist, tn);
-        if (!kOrdered) {
-          int lanes[8], k = 0;
-          for (int m = mask; m; m &= m - 1) lanes[k++] = __builtin_ctz(m);
-          for (int j = k - 1; j >= 0; --j) stack[sp++] = {n.child[lanes[j]], dist[lanes[j]]};
-          ref = n.child[first];
-          continue;
-        }
-        // Nearest first: insertion sort of the hit children by distance
-        // (prefetching their nodes), farthest pushed first.
-        StackEntry e[8];
-        int k = 0;
-        e[k++] = {n.child[first], dist[first]};
-        if (!bvh4_is_leaf(n.child[first])) prefetch_node(nodes, n.child[first]);
-        for (int m = mask; m; m &= m - 1) {
-          const int c = __builtin_ctz(m);
-          StackEntry x{n.child[c], dist[c]};
-          if (!bvh4_is_leaf(x.ref)) prefetch_node(nodes, x.ref);
-          int j = k++;
-          while (j > 0 && e[j - 1].t > x.t) {
-            e[j] = e[j - 1];
-            --j;
-          }
-          e[j] = x;
-        }
-        for (int j = k - 1; j > 0; --j) stack[sp++] = e[j];
-        ref = e[0].ref;
-        continue;
-      }
-    } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
-        __m128 t, u, v;
-        int mask = intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v);
-        if (mask == 0) continue;
-        alignas(16) float ts[4], us[4], vs[4];
-        _mm_store_ps(ts, t);
-        _mm_store_ps(us, u);
-        _mm_store_ps(vs, v);
-        // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
-        int best = -1;
-        for (int m = mask; m; m &= m - 1) {
-          const int lane = __builtin_ctz(m);
-          if (best < 0 || ts[lane] < ts[best]) best = lane;
-        }
-        t_best = ts[best];
-        hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
-        ray.set_tmax(t_best);
-        found = true;
-      }
-    }
-    // Pop, skipping entries farther than the nearest hit so far.
-    for (;;) {
-      if (sp == 0) {
-        tmax = t_best;
-        return found;
-      }
-      --sp;
-      if (stack[sp].t <= t_best) break;
-    }
-    ref = stack[sp].ref;
-  }
+  return wide_intersect<Bvh8Traits, kOrdered>(bvh.nodes.data(), bvh.tris.data(), ray, tmax, hit);
 }
 
 template bool bvh8_intersect_avx2<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
@@ -172,32 +101,7 @@ template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, 
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
   if (bvh.nodes.empty()) return false;
   Ray8 ray(o, d, tmax);
-  const BVH8Node* nodes = bvh.nodes.data();
-  const Tri4* tris = bvh.tris.data();
-  uint32_t stack[kStackSize];
-  int sp = 0;
-  uint32_t ref = 0;
-  for (;;) {
-    if (!bvh4_is_leaf(ref)) {
-      const BVH8Node& n = nodes[ref];
-      __m256 tn;
-      int mask = intersect_node8(n, ray, tn);
-      if (mask != 0) {
-        const int first = __builtin_ctz(mask);
-        for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
-        ref = n.child[first];
-        continue;
-      }
-    } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
-        __m128 t, u, v;
-        if (intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v)) return true;
-      }
-    }
-    if (sp == 0) return false;
-    ref = stack[--sp];
-  }
+  return wide_occluded<Bvh8Traits>(bvh.nodes.data(), bvh.tris.data(), ray);
 }
 
 }  // namespace tessera

@@ -1,0 +1,139 @@
+// Closest-hit and any-hit traversal of a wide BVH (BVH4 or BVH8) whose leaves
+// are runs of Tri4 blocks: one loop for every width. Each width supplies a
+// Traits struct:
+//   Node, Ray                      node and per-ray constant types
+//   kStackSize                     traversal stack entries
+//   test(node, ray, dist) -> mask  slab test of the children, entry distances in dist
+//   tri_tmax(ray) -> __m128        current tmax for the triangle test
+//   set_tmax(ray, t)               shrink the ray after a hit
+//   prefetch(nodes, ref)           fetch a child node's cache lines
+// Included after simd_tri4.h by bvh4.cpp (SSE2) and bvh8_avx2.cpp (inside its
+// AVX2 target region), so each width compiles for its own instruction set;
+// everything here has internal linkage.
+#pragma once
+#include "bvh4.h"
+#include "simd_tri4.h"
+
+namespace tessera {
+namespace {
+
+struct WideStackEntry {
+  uint32_t ref;
+  float t;
+};
+
+template <typename Traits, bool kOrdered>
+bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typename Traits::Ray& ray, float& tmax,
+                    BVH4Hit& hit) {
+  constexpr int kWidth = Traits::kWidth;
+  WideStackEntry stack[Traits::kStackSize];
+  int sp = 0;
+  uint32_t ref = 0;
+  bool found = false;
+  float t_best = tmax;
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const auto& n = nodes[ref];
+      alignas(32) float dist[kWidth];
+      int mask = Traits::test(n, ray, dist);
+      if (mask != 0) {
+        const int first = __builtin_ctz(mask);
+        mask &= mask - 1;
+        if (mask == 0) {  // one child hit: descend without the stack
+          ref = n.child[first];
+          continue;
+        }
+        if (!kOrdered) {
+          // Stored order: push the others in reverse, descend into the first.
+          int lanes[kWidth], k = 0;
+          for (int m = mask; m; m &= m - 1) lanes[k++] = __builtin_ctz(m);
+          for (int j = k - 1; j >= 0; --j) stack[sp++] = {n.child[lanes[j]], dist[lanes[j]]};
+          ref = n.child[first];
+          continue;
+        }
+        // Nearest first: insertion sort of the hit children by distance
+        // (prefetching their nodes), farthest pushed first.
+        WideStackEntry e[kWidth];
+        int k = 0;
+        e[k++] = {n.child[first], dist[first]};
+        if (!bvh4_is_leaf(n.child[first])) Traits::prefetch(nodes, n.child[first]);
+        for (int m = mask; m; m &= m - 1) {
+          const int c = __builtin_ctz(m);
+          WideStackEntry x{n.child[c], dist[c]};
+          if (!bvh4_is_leaf(x.ref)) Traits::prefetch(nodes, x.ref);
+          int j = k++;
+          while (j > 0 && e[j - 1].t > x.t) {
+            e[j] = e[j - 1];
+            --j;
+          }
+          e[j] = x;
+        }
+        for (int j = k - 1; j > 0; --j) stack[sp++] = e[j];
+        ref = e[0].ref;
+        continue;
+      }
+    } else {
+      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = first; b < first + blocks; ++b) {
+        __m128 t, u, v;
+        int mask = intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v);
+        if (mask == 0) continue;
+        alignas(16) float ts[4], us[4], vs[4];
+        _mm_store_ps(ts, t);
+        _mm_store_ps(us, u);
+        _mm_store_ps(vs, v);
+        // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
+        int best = -1;
+        for (int m = mask; m; m &= m - 1) {
+          const int lane = __builtin_ctz(m);
+          if (best < 0 || ts[lane] < ts[best]) best = lane;
+        }
+        t_best = ts[best];
+        hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
+        Traits::set_tmax(ray, t_best);
+        found = true;
+      }
+    }
+    // Pop, skipping entries farther than the nearest hit so far.
+    for (;;) {
+      if (sp == 0) {
+        tmax = t_best;
+        return found;
+      }
+      --sp;
+      if (stack[sp].t <= t_best) break;
+    }
+    ref = stack[sp].ref;
+  }
+}
+
+template <typename Traits>
+bool wide_occluded(const typename Traits::Node* nodes, const Tri4* tris, typename Traits::Ray& ray) {
+  uint32_t stack[Traits::kStackSize];
+  int sp = 0;
+  uint32_t ref = 0;
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const auto& n = nodes[ref];
+      alignas(32) float dist[Traits::kWidth];
+      int mask = Traits::test(n, ray, dist);
+      if (mask != 0) {
+        const int first = __builtin_ctz(mask);
+        for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
+        ref = n.child[first];
+        continue;
+      }
+    } else {
+      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = first; b < first + blocks; ++b) {
+        __m128 t, u, v;
+        if (intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v)) return true;
+      }
+    }
+    if (sp == 0) return false;
+    ref = stack[--sp];
+  }
+}
+
+}  // namespace
+}  // namespace tessera
