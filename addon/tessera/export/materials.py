@@ -43,18 +43,10 @@ def image_average(node):
     key = img.as_pointer()
     if key not in _image_cache:
         try:
-            n = img.size[0] * img.size[1]
-            if n == 0:
-                _image_cache[key] = None
-                return None
-            px = np.empty(n * 4, dtype=np.float32)
-            img.pixels.foreach_get(px)
-            mean = px.reshape(-1, 4).mean(axis=0).astype(np.float64)
-            if not img.is_float and img.colorspace_settings.name == 'sRGB':
-                mean[:3] = srgb_to_linear(mean[:3])
-            _image_cache[key] = tuple(float(x) for x in mean)
+            px = image_pixels(img)
         except RuntimeError:
-            _image_cache[key] = None
+            px = None
+        _image_cache[key] = None if px is None else tuple(float(x) for x in px.reshape(-1, 4).mean(axis=0))
     return _image_cache[key]
 
 
@@ -66,10 +58,8 @@ def image_pixels(img):
     px = np.empty(w * h * 4, dtype=np.float32)
     img.pixels.foreach_get(px)
     px = px.reshape(h, w, 4)
-    cs = img.colorspace_settings.name
-    if not img.is_float and cs == 'sRGB':
-        rgb = px[..., :3]
-        px[..., :3] = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    if not img.is_float and img.colorspace_settings.name == 'sRGB':
+        px[..., :3] = srgb_to_linear(px[..., :3])
     return px
 
 

@@ -27,7 +27,7 @@ def socket_default(socket):
 
 
 def srgb_to_linear(c):
-    c = np.asarray(c, dtype=np.float64)
+    c = np.asarray(c)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from .materials import output_node
+from .materials import image_pixels, output_node
 from .nodes import Evaluator, to_color, to_float
 
 
@@ -24,17 +24,11 @@ def _environment(env_node, report, world_name):
     if img is None:
         report.warn(world_name, f"World '{world_name}': the Environment Texture has no image; it is black.")
         return None
-    w, h = img.size
-    if w == 0 or h == 0:
+    px = image_pixels(img)
+    if px is None:
         report.warn(world_name, f"World '{world_name}': image '{img.name}' could not be loaded "
                                 f"(missing file?); the environment is black. Relink or pack the image.")
         return None
-    px = np.empty(w * h * 4, dtype=np.float32)
-    img.pixels.foreach_get(px)
-    px = px.reshape(h, w, 4)
-    if not img.is_float and img.colorspace_settings.name == 'sRGB':
-        rgb = px[..., :3]
-        px[..., :3] = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
     if env_node.projection != 'EQUIRECTANGULAR':
         report.warn(world_name, f"World '{world_name}': {env_node.projection} projection is not supported; "
                                 f"the image is read as equirectangular.")
