@@ -8,17 +8,19 @@ namespace tessera {
 
 namespace {
 
-// Smooth edge of a spot light, as Cycles' spot_light_attenuation: the
-// cosine to the axis, cut at the cone and smoothstepped over the blend.
+// Smooth edge of a spot light, as Cycles' spot_light_attenuation: cut at
+// the cone and smoothstepped over the blend, times the cosine to the axis
+// in Cycles 3.x (spot_cosine), without it in 4.0+.
 float spot_attenuation(const Light& l, const vec3& dir_from_light) {
-  float c = glm::dot(dir_from_light, l.direction);
+  const float c = glm::dot(dir_from_light, l.direction);
   if (c <= l.spot_cos) return 0.0f;
-  float t = c - l.spot_cos;
+  float a = l.spot_cosine ? c : 1.0f;
+  const float t = c - l.spot_cos;
   if (l.spot_smooth > 0.0f && t < l.spot_smooth) {
-    float x = t / l.spot_smooth;
-    c *= x * x * (3.0f - 2.0f * x);
+    const float x = t / l.spot_smooth;
+    a *= x * x * (3.0f - 2.0f * x);
   }
-  return c;
+  return a;
 }
 
 // Bound on the rounding error, along the ray, of both ends of a shadow ray
@@ -168,6 +170,9 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
       ls.dist = kInf;
       ls.li = l.radiance;
       ls.pdf = pmf * len2 * len / (kPi * l.radius * l.radius);
+      // Scattered rays never reach the sun disk (intersect_lights has no
+      // suns), so light sampling alone must carry it: no MIS weight.
+      ls.is_delta = true;
       return true;
     }
     case LightType::Area: {

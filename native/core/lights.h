@@ -21,6 +21,9 @@ struct Light {
   float radius = 0.0f;      // point/spot: sphere radius; sun: tan(half angle)
   float spot_cos = -1.0f;   // spot: cos(half cone angle)
   float spot_smooth = 0.0f; // spot: width of the smooth edge in cosine
+  // spot: Cycles 3.x multiplies the smooth edge by the cosine to the axis;
+  // Cycles 4.0+ (kernel/light/spot.h) uses the smoothstep alone.
+  bool spot_cosine = true;
   bool ellipse = false;     // area: disk/ellipse instead of square/rectangle
   vec3 radiance{0.0f};      // emitted radiance (area, sphere, sun disk) or intensity (radius 0)
   float area = 0.0f;        // area lights: surface area
@@ -39,7 +42,7 @@ struct LightSample {
   float dist;     // distance to the light point (kInf for sun and world)
   vec3 li;        // incident radiance (or intensity / dist^2 for delta lights)
   float pdf;      // solid-angle pdf including selection; for delta lights, selection pmf only
-  bool is_delta;  // no MIS: BSDF sampling cannot hit it
+  bool is_delta;  // no MIS: BSDF sampling cannot hit it (delta lights, the sun disk)
 };
 
 class Background;

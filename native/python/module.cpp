@@ -243,7 +243,7 @@ PYBIND11_MODULE(_core, m) {
           "add_light",
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
              std::vector<float> axis_u, std::vector<float> axis_v, float radius, float spot_cos, float spot_smooth,
-             bool ellipse, std::vector<float> radiance) {
+             bool ellipse, std::vector<float> radiance, bool spot_cosine) {
             Light l;
             if (type == "POINT") l.type = LightType::Point;
             else if (type == "SPOT") l.type = LightType::Spot;
@@ -257,6 +257,7 @@ PYBIND11_MODULE(_core, m) {
             l.radius = radius;
             l.spot_cos = spot_cos;
             l.spot_smooth = spot_smooth;
+            l.spot_cosine = spot_cosine;
             l.ellipse = ellipse;
             l.radiance = to_vec3(radiance, "radiance");
             l.area = 4.0f * glm::length(l.axis_u) * glm::length(l.axis_v) * (ellipse ? kPi / 4.0f : 1.0f);
@@ -265,7 +266,8 @@ PYBIND11_MODULE(_core, m) {
           py::arg("type"), py::arg("position"), py::arg("direction") = std::vector<float>{0, 0, -1},
           py::arg("axis_u") = std::vector<float>{1, 0, 0}, py::arg("axis_v") = std::vector<float>{0, 1, 0},
           py::arg("radius") = 0.0f, py::arg("spot_cos") = -1.0f, py::arg("spot_smooth") = 0.0f,
-          py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1})
+          py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1},
+          py::arg("spot_cosine") = true)
       .def("set_world_color", [](Scene& s, std::vector<float> c) { s.background.set_color(to_vec3(c, "color")); })
       .def(
           "set_world_image",

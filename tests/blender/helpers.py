@@ -33,8 +33,9 @@ def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
         scene.cycles.device = 'CPU'
         scene.cycles.samples = samples
         scene.cycles.max_bounces = bounces
-        for kind in ("diffuse", "glossy", "transmission", "volume", "transparent_max"):
-            setattr(scene.cycles, f"{kind}_bounces" if kind != "transparent_max" else kind, max(bounces, 1) if kind != "volume" else 0)
+        for kind in ("diffuse", "glossy", "transmission", "transparent_max"):
+            setattr(scene.cycles, f"{kind}_bounces", max(bounces, 1))
+        scene.cycles.volume_bounces = 0
         scene.cycles.use_denoising = False
         scene.cycles.use_adaptive_sampling = False
         scene.cycles.seed = seed

@@ -13,6 +13,8 @@ LIGHTS = {
     "spot": ('SPOT', dict(energy=300.0, shadow_soft_size=0.1, spot_size=0.9, spot_blend=0.3)),
     "sun": ('SUN', dict(energy=3.0, angle=0.1)),
     "sun_sharp": ('SUN', dict(energy=3.0, angle=0.0)),
+    # A wide sun shows the disk normalisation (Cycles 3.x: tan^2 of the half angle, 4.x: sin^2).
+    "sun_wide": ('SUN', dict(energy=3.0, angle=1.2)),
     "area_square": ('AREA', dict(energy=200.0, shape='SQUARE', size=1.0)),
     "area_rectangle": ('AREA', dict(energy=200.0, shape='RECTANGLE', size=1.5, size_y=0.5)),
     "area_disk": ('AREA', dict(energy=200.0, shape='DISK', size=1.0)),

@@ -1,9 +1,64 @@
 """Blender lights, converted from Watts (W/m^2 for the sun) to the radiance
-or intensity the core samples, exactly as Cycles converts them."""
+or intensity the core samples, exactly as the Cycles of the running Blender
+converts them (intern/cycles/scene/light.cpp and kernel/light/*.h):
+
+- point/spot, radius r > 0: radiance P / (4 pi * pi r^2), seen as the disk
+  facing the shading point (3.x; 4.x's default "soft falloff"); r = 0:
+  intensity P / (4 pi). Unnormalised (4.x): radiance P / pi.
+- spot edge: 3.x multiplies the smoothstep by the cosine to the axis; 4.0+
+  uses the smoothstep alone (kernel/light/spot.h).
+- area: 3.x radiance P / (4 A); 4.0+ P / (pi A), the physical value, and
+  files older than 4.0 are versioned with energy *= pi / 4 (versioning_400,
+  "Fix area light scaling"); unnormalised (4.x): P / pi.
+- sun of half angle h: 4.x constant radiance E / (pi sin^2 h) over the
+  cone, irradiance E; 3.x sampled a disk tan(h) one unit away and weighted
+  each direction by its own pdf (eval_fac = pdf), irradiance
+  E 2 cos h / (1 + cos h) at normal incidence: the constant radiance with
+  that irradiance is used (exact at normal incidence). Unnormalised (4.x): E.
+"""
 
 import math
 
+import bpy
 import numpy as np
+
+# Cycles 4.0 changed area light units, spot edges and sun normalisation.
+CYCLES_4 = bpy.app.version >= (4, 0, 0)
+
+
+def light_color(light):
+    """Colour x power in Watts (W/m^2 for the sun), as Cycles' sync_light:
+    colour (x blackbody colour when the temperature is used) x energy x 2^exposure."""
+    color = np.array(light.color, dtype=np.float64)
+    if getattr(light, "use_temperature", False):
+        color = color * np.array(light.temperature_color, dtype=np.float64)
+    return color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+
+
+def point_radiance(power, radius, normalize=True):
+    """Radiance of a point/spot light of radius > 0, or intensity at radius 0."""
+    if radius <= 0.0:
+        return power / (4.0 * math.pi)
+    if not normalize:
+        return power / math.pi
+    return power / (4.0 * math.pi * math.pi * radius * radius)
+
+
+def area_radiance(power, area, normalize=True, cycles4=CYCLES_4):
+    if not normalize:
+        return power / math.pi
+    return power / (math.pi * area) if cycles4 else power / (4.0 * area)
+
+
+def sun_radiance(irradiance, half_angle, normalize=True, cycles4=CYCLES_4):
+    """Constant radiance over the cone of the sun's half angle (> 0)."""
+    if not normalize:
+        return irradiance
+    s2 = math.sin(half_angle) ** 2
+    if cycles4:
+        return irradiance / (math.pi * s2)
+    c = math.cos(half_angle)
+    return irradiance * 2.0 * c / ((1.0 + c) * math.pi * s2)
 
 
 def export_light(scene_core, obj, matrix_world, report):
@@ -12,9 +67,8 @@ def export_light(scene_core, obj, matrix_world, report):
     if not np.all(np.isfinite(m)):
         report.warn(obj.name, f"Light '{obj.name}' has a non-finite transform; it is ignored.")
         return
-    color = np.array(light.color, dtype=np.float64)
-    energy = float(light.energy)
-    if not math.isfinite(energy) or energy <= 0.0 or not color.any():
+    power = light_color(light)
+    if not np.all(np.isfinite(power)) or not (power > 0.0).any():
         return
     position = m[:3, 3]
     z_axis = m[:3, 2]
@@ -23,31 +77,33 @@ def export_light(scene_core, obj, matrix_world, report):
         return
     direction = -z_axis / np.linalg.norm(z_axis)  # lights shine down their local -Z
     kind = light.type
+    normalize = bool(getattr(light, "normalize", True))  # Blender 4.x "Normalize"
     if getattr(light, "use_nodes", False):
         report.warn(obj.name, f"Light '{obj.name}' uses a node tree, which Tessera ignores; "
                               f"its colour and power are used.")
     args = dict(type=kind, position=position.tolist(), direction=direction.tolist())
     if kind in ('POINT', 'SPOT'):
         radius = float(light.shadow_soft_size)
-        intensity = color * energy / (4.0 * math.pi)  # W/sr
         if radius > 0.0:
             args["radius"] = radius
-            args["radiance"] = (intensity / (math.pi * radius * radius)).tolist()
-        else:
-            args["radiance"] = intensity.tolist()
+            if not getattr(light, "use_soft_falloff", True):
+                report.warn(obj.name, f"Light '{obj.name}': Soft Falloff is off, so Cycles renders it as a "
+                                      f"sphere; Tessera renders it as with Soft Falloff on (a disk facing "
+                                      f"each shaded point), which differs close to the light.")
+        args["radiance"] = point_radiance(power, radius, normalize).tolist()
         if kind == 'SPOT':
             spot_cos = math.cos(0.5 * float(light.spot_size))
             args["spot_cos"] = spot_cos
             args["spot_smooth"] = (1.0 - spot_cos) * float(light.spot_blend)
+            args["spot_cosine"] = not CYCLES_4
     elif kind == 'SUN':
         half = 0.5 * float(light.angle)
-        irradiance = color * energy  # W/m^2
         if half > 0.0:
-            r = math.tan(half)
-            args["radius"] = r
-            args["radiance"] = (irradiance / (math.pi * r * r)).tolist()
+            # The core samples the cone as a disk of radius tan(h) one unit away.
+            args["radius"] = math.tan(min(half, 0.5 * math.pi - 1e-3))
+            args["radiance"] = sun_radiance(power, half, normalize).tolist()
         else:
-            args["radiance"] = irradiance.tolist()
+            args["radiance"] = power.tolist()
     elif kind == 'AREA':
         shape = light.shape
         size_x = float(light.size)
@@ -66,8 +122,7 @@ def export_light(scene_core, obj, matrix_world, report):
         args["axis_u"] = axis_u.tolist()
         args["axis_v"] = axis_v.tolist()
         args["ellipse"] = shape in ('DISK', 'ELLIPSE')
-        # Cycles: radiance = P / (4 A) for an area light of power P.
-        args["radiance"] = (color * energy / (4.0 * area)).tolist()
+        args["radiance"] = area_radiance(power, area, normalize).tolist()
     else:
         report.warn(obj.name, f"Light '{obj.name}' of type {kind} is not supported; it is ignored.")
         return
