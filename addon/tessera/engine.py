@@ -88,6 +88,11 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         # (and a render farm) sees the failure.
         try:
             self._render(depsgraph)
+        except MemoryError:
+            import traceback
+            traceback.print_exc()
+            self.report({'ERROR'}, "Tessera ran out of memory. Lower the resolution, the number of enabled "
+                                   "passes or the scene's size, or close other programs, and render again.")
         except Exception as e:  # noqa: BLE001 - every failure must reach the report
             import traceback
             traceback.print_exc()
@@ -103,19 +108,24 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         scene = depsgraph.scene
         width, height = render_size(scene)
         region = render_region(scene, width, height)
+        from .memory import render_memory_error
+        too_big = render_memory_error(width, height, region[2] - region[0], region[3] - region[1])
+        if too_big:
+            self.report({'ERROR'}, too_big)
+            return
         self.update_stats("", "Tessera: exporting scene")
         try:
             scene_core, stats, report = export_scene(depsgraph, width, height, self.test_break)
         except ExportError as e:
             self.report({'ERROR'}, str(e))
             return
+        if scene_core is not None and stats["triangles"] == 0:
+            report.warnings.append("Tessera: the scene has no visible geometry; only the world is rendered.")
         for message in report.warnings:
             self.report({'WARNING'}, message)
             print(f"Tessera: warning: {message}")
         if scene_core is None:
             return  # cancelled during export
-        if stats["triangles"] == 0:
-            self.report({'WARNING'}, "Tessera: the scene has no visible geometry; only the world is rendered.")
 
         settings = scene.tessera
         session = core.native.Session(scene_core, render_options(settings, region))

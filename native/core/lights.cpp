@@ -109,7 +109,7 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
     // triangle as the BVH tests it (in its instance's space), and the shading
     // point's offset origin (pbrt-v4 SpawnRayTo offsets both ends). Without it,
     // far from the origin (1e3 and beyond) every shadow ray hit its own light.
-    ls.dist = std::max(0.0f, ls.dist - shadow_end_error(p, q));
+    ls.dist = std::max(0.0f, ls.dist - shadow_end_error(p, q) - t.local_error);
     float cos_l = -glm::dot(ls.wi, t.n);  // > 0: we see the front face
     if (cos_l == 0.0f) return false;
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;

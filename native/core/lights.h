@@ -35,6 +35,10 @@ struct EmissiveTriangle {
   float area;
   vec3 le_front, le_back;
   uint32_t instance, prim;  // prim in leaf order
+  // Bound on the rounding, in world units, of points on the triangle as the
+  // BVH tests them in its instance's space (large when the mesh's own
+  // coordinates are large, whatever the world position).
+  float local_error = 0.0f;
 };
 
 struct LightSample {

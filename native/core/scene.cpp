@@ -39,18 +39,49 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
     for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
       const Material& m = materials[material_of(inst, mesh.slot(mesh.prim_ids[k]))];
       if (!m.is_emissive()) continue;
-      vec3 p[3];
-      for (int j = 0; j < 3; ++j) p[j] = vec3(inst.to_world * vec4(mesh.tri_verts[3 * k + j], 1.0f));
-      vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+      // Edges from the local-space edges through the linear part of the
+      // transform, not as differences of world-space vertices: far from the
+      // origin those are rounded to the float spacing there (1/128 at 1e5),
+      // which shrank a 0.6-wide light quad's area by 2%, and its light with it.
+      const vec3* v = &mesh.tri_verts[3 * k];
+      const glm::mat3 linear(inst.to_world);
+      const vec3 p0 = vec3(inst.to_world * vec4(v[0], 1.0f));
+      const vec3 e1 = linear * (v[1] - v[0]), e2 = linear * (v[2] - v[0]);
+      vec3 c = glm::cross(e1, e2);
       float len = glm::length(c);
-      if (!(len > 0.0f) || !std::isfinite(len)) continue;
-      out.push_back({p[0], p[1] - p[0], p[2] - p[0], c / len, 0.5f * len, m.emission_front, m.emission_back, i, k});
+      if (!(len > 0.0f) || !std::isfinite(len) || !is_finite(p0)) continue;
+      // The shadow ray's end, tested in the instance's space: as
+      // shadow_end_error (lights.cpp) for the local magnitudes.
+      const float local = std::max({max_component(glm::abs(v[0])), max_component(glm::abs(v[1])),
+                                    max_component(glm::abs(v[2]))});
+      const float stretch = std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
+      const float local_error = 2.0f * gamma(8) * local * stretch;
+      out.push_back({p0, e1, e2, c / len, 0.5f * len, m.emission_front, m.emission_back, i, k, local_error});
     }
   }
   return out;
 }
 
+void Scene::rebase_on_camera() {
+  const vec3 c(camera.to_world[3]);
+  if (!is_finite(c) || max_component(glm::abs(c)) < kRebaseDistance) return;
+  // Differences of floats are exact in double: one rounding to float each.
+  auto relative = [&](const vec3& p) { return vec3(glm::dvec3(p) - glm::dvec3(c)); };
+  for (Instance& inst : instances) {
+    mat4 m = inst.to_world;
+    m[3] = vec4(relative(vec3(m[3])), 1.0f);
+    inst.to_world = m;
+    inst.to_local = glm::inverse(m);
+    inst.normal_to_world = glm::transpose(glm::mat3(inst.to_local));
+    inst.identity = m == mat4(1.0f);
+  }
+  for (Light& l : lights) l.position = relative(l.position);
+  camera.to_world[3] = vec4(0.0f, 0.0f, 0.0f, 1.0f);
+  render_origin = vec3(glm::dvec3(render_origin) + glm::dvec3(c));
+}
+
 void Scene::commit() {
+  rebase_on_camera();
   std::vector<AABB> boxes(instances.size());
   for (size_t i = 0; i < instances.size(); ++i) {
     const Instance& inst = instances[i];

@@ -56,8 +56,20 @@ class Scene {
   Scene() { materials.push_back(Material{}); }
 
   uint32_t add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials);
-  // Builds the TLAS and the light sampler; call once after adding everything.
+  // Builds the TLAS and the light sampler; call once after adding everything
+  // (camera included: see render_origin).
   void commit();
+
+  // Camera-relative render space. Floats far from the origin are coarse (1/128
+  // apart at 1e5), so a scene viewed from there loses every detail under that
+  // size. When the camera is at least kRebaseDistance from the world origin,
+  // commit() moves the scene (instance transforms, lights, camera; each new
+  // translation rounded once from exact double differences) so that the camera
+  // sits at the origin, and records the world position of the new origin
+  // here. After commit() the core works in render space: world = render +
+  // render_origin. Nearer cameras keep world space as it is.
+  static constexpr float kRebaseDistance = 1024.0f;
+  vec3 render_origin{0.0f};
 
   bool intersect(const Ray& ray, Hit& hit) const;
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
@@ -79,6 +91,7 @@ class Scene {
   uint32_t material_of(const Instance& inst, uint32_t slot) const {
     return slot < inst.num_slots ? instance_materials[inst.material_offset + slot] : 0;
   }
+  void rebase_on_camera();
   std::vector<EmissiveTriangle> collect_emissive_triangles() const;
   Material textured_material(const Material& m, vec2 uv) const;
   void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,

@@ -43,6 +43,9 @@ vec3 to_vec3(const std::vector<float>& v, const char* what) {
   return vec3(v[0], v[1], v[2]);
 }
 
+// A world-space point in the committed scene's render space (Scene::render_origin).
+vec3 to_render_space(const Scene& s, const vec3& p) { return vec3(glm::dvec3(p) - glm::dvec3(s.render_origin)); }
+
 class PySession {
  public:
   PySession(std::shared_ptr<Scene> scene, const RenderOptions& options)
@@ -310,12 +313,14 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "intersect",
           [](const Scene& s, std::vector<float> o, std::vector<float> d, float tmax) -> py::object {
-            Ray r{to_vec3(o, "origin"), glm::normalize(to_vec3(d, "direction")), tmax};
+            // World space in and out; the core works in render space (Scene::render_origin).
+            Ray r{to_render_space(s, to_vec3(o, "origin")), glm::normalize(to_vec3(d, "direction")), tmax};
             Hit h;
             if (!s.intersect(r, h)) return py::none();
             SurfaceInteraction si = s.interaction(r, h);
+            const glm::dvec3 p = glm::dvec3(si.p) + glm::dvec3(s.render_origin);
             return py::make_tuple(h.t, h.instance, s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim],
-                                  std::vector<float>{si.p.x, si.p.y, si.p.z}, std::vector<float>{si.ng.x, si.ng.y, si.ng.z},
+                                  std::vector<double>{p.x, p.y, p.z}, std::vector<float>{si.ng.x, si.ng.y, si.ng.z},
                                   si.back_face);
           },
           py::arg("origin"), py::arg("direction"), py::arg("tmax") = kInf,
@@ -323,7 +328,7 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "occluded",
           [](const Scene& s, std::vector<float> o, std::vector<float> d, float tmax) {
-            return s.occluded(to_vec3(o, "origin"), glm::normalize(to_vec3(d, "direction")), tmax);
+            return s.occluded(to_render_space(s, to_vec3(o, "origin")), glm::normalize(to_vec3(d, "direction")), tmax);
           },
           py::arg("origin"), py::arg("direction"), py::arg("tmax") = kInf)
       .def_property_readonly("num_triangles", &Scene::num_triangles)

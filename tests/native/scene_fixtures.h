@@ -19,7 +19,10 @@ inline void add_quad(Scene& s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t material
 
 // A closed white box [-1,1]^3 with a red left wall, lit by an emissive quad
 // under the ceiling, seen from the front through an opening at z = 1.
-inline void build_cornell_box(Scene& s, int width = 32, int height = 32, const mat4& xf = mat4(1.0f), float scale = 1.0f) {
+// Commits the scene unless told not to (to change the camera first: commit()
+// moves a scene seen from far away into camera-relative render space).
+inline void build_cornell_box(Scene& s, int width = 32, int height = 32, const mat4& xf = mat4(1.0f), float scale = 1.0f,
+                              bool commit = true) {
   Material white;
   white.base_color = vec3(0.7f);
   Material red;
@@ -46,7 +49,7 @@ inline void build_cornell_box(Scene& s, int width = 32, int height = 32, const m
   c.clip_end = 100.0f * scale;
   c.width = width;
   c.height = height;
-  s.commit();
+  if (commit) s.commit();
 }
 
 }  // namespace tessera::fixtures

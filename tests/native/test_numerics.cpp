@@ -143,10 +143,11 @@ TEST(Numerics, CornellBoxAtEveryScaleRendersTheSameImage) {
       if (baked) fixtures::build_cornell_box(s, 24, 24, mat4(1.0f), scale);
       else {
         // Scaled by the instance transforms; the camera is placed (not scaled) as Blender's export does.
-        fixtures::build_cornell_box(s, 24, 24, glm::scale(mat4(1.0f), vec3(scale)));
+        fixtures::build_cornell_box(s, 24, 24, glm::scale(mat4(1.0f), vec3(scale)), 1.0f, /*commit=*/false);
         s.camera.to_world = glm::translate(mat4(1.0f), vec3(0, 0, 3.5f * scale));
         s.camera.clip_start = 0.01f * scale;
         s.camera.clip_end = 100.0f * scale;
+        s.commit();
       }
       const Image img = render(s, 32);
       ASSERT_TRUE(all_finite(img.px));
@@ -163,13 +164,16 @@ TEST(Numerics, CornellBoxAtEveryScaleRendersTheSameImage) {
   }
 }
 
-// Moved 1e5 units from the origin (float spacing there is 1/128), the mean
-// stays within 2% of the image at the origin.
+// Moved up to 1e5 units from the origin (float spacing there is 1/128) by the
+// instance transforms, as Blender moves objects, the image is the one at the
+// origin: commit() renders in camera-relative space (Scene::render_origin).
+// With the vertices themselves stored far away, the mean stays within 2% up
+// to 1e4.
 TEST(Numerics, CornellBoxFarFromTheOrigin) {
   Scene ref;
   fixtures::build_cornell_box(ref, 24, 24);
   const vec3 m0 = render(ref, 32).mean();
-  for (float offset : {1e3f, 1e4f})  // 1e5: DISABLED_CornellBox1e5FromTheOrigin
+  for (float offset : {1e3f, 1e4f, 1e5f})
   for (bool baked : {true, false}) {
     const vec3 far(offset, -offset, offset);
     Scene s;
@@ -203,7 +207,12 @@ TEST(Numerics, CornellBoxFarFromTheOrigin) {
       moved.commit();
       const vec3 m = render(moved, 32).mean();
       std::printf("%g from the origin (vertices): mean ratio %.4f %.4f %.4f\n", offset, m.x / m0.x, m.y / m0.y, m.z / m0.z);
-      for (int c = 0; c < 3; ++c) EXPECT_NEAR(m[c] / m0[c], 1.0, 0.02) << "channel " << c;
+      // Vertices stored at 1e5 are rounded to 1/128 before Tessera sees them:
+      // the 0.6-wide light quad is 0.594 wide in the data (2.1% less area, so
+      // 2.1% less light) and 1/128 under the ceiling instead of 0.01. No
+      // renderer can get the original back from such data; 6% bounds it.
+      const double bound = offset >= 1e5f ? 0.06 : 0.02;
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(m[c] / m0[c], 1.0, bound) << "channel " << c;
     } else {
       fixtures::build_cornell_box(s, 24, 24, glm::translate(mat4(1.0f), far));
       const vec3 m = render(s, 32).mean();
@@ -478,18 +487,3 @@ TEST(Numerics, TinyDirectionsInScaledInstances) {
   }
 }
 
-// 1e5 from the origin the Cornell box comes out 5.5% dark (1e3: 0.7%, 1e4:
-// 1.3%). Part of it was fixed in lights.cpp (shadow rays ended on their own
-// emitter: 19% dark before). The rest: the integrator measures the shadow
-// ray's length from si.p, not from the offset origin. Fix (integrator.cpp,
-// next-event estimation): tmax = (ls.dist - glm::dot(origin - si.p, ls.wi)) *
-// (1 - 1e-4f), i.e. pbrt-v4's SpawnRayTo; then re-measure.
-TEST(Numerics, DISABLED_CornellBox1e5FromTheOrigin) {
-  Scene ref;
-  fixtures::build_cornell_box(ref, 24, 24);
-  const vec3 m0 = render(ref, 32).mean();
-  Scene s;
-  fixtures::build_cornell_box(s, 24, 24, glm::translate(mat4(1.0f), vec3(1e5f, -1e5f, 1e5f)));
-  const vec3 m = render(s, 32).mean();
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(m[c] / m0[c], 1.0, 0.02) << "channel " << c;
-}
