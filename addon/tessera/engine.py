@@ -82,6 +82,11 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
     bl_use_eevee_viewport = True
     bl_use_postprocess = True
 
+    def cancel_requested(self):
+        """Blender's test_break (Escape, or a closed render window), asked in
+        one place so that tests can simulate a user cancelling."""
+        return self.test_break()
+
     def render(self, depsgraph):
         # An exception escaping render() makes Blender save a black frame and
         # exit 0; report it as an error instead, so that a headless render
@@ -115,7 +120,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             return
         self.update_stats("", "Tessera: exporting scene")
         try:
-            scene_core, stats, report = export_scene(depsgraph, width, height, self.test_break)
+            scene_core, stats, report = export_scene(depsgraph, width, height, self.cancel_requested)
         except ExportError as e:
             self.report({'ERROR'}, str(e))
             return
@@ -145,7 +150,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         session.start()
         shown = 0
         while not session.wait(0.1):
-            if self.test_break():
+            if self.cancel_requested():
                 session.cancel()
                 session.wait(30.0)
                 self.end_result(result, cancel=True)
