@@ -95,6 +95,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             self._render(depsgraph)
         except MemoryError:
             import traceback
+    opt.max_transparent_bounces = settings.max_transparent_bounces
             traceback.print_exc()
             self.report({'ERROR'}, "Tessera ran out of memory. Lower the resolution, the number of enabled "
                                    "passes or the scene's size, or close other programs, and render again.")

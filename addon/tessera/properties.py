@@ -10,12 +10,15 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
 PRESETS = {
     'PREVIEW': dict(samples=32, adaptive_threshold=0.1, adaptive_min_samples=8, max_bounces=4,
                     max_diffuse_bounces=2, max_glossy_bounces=2, max_transmission_bounces=4,
+                    max_transparent_bounces=8,
                     rr_depth=2, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
     'PRODUCTION': dict(samples=1024, adaptive_threshold=0.01, adaptive_min_samples=0, max_bounces=12,
                        max_diffuse_bounces=4, max_glossy_bounces=4, max_transmission_bounces=12,
+                       max_transparent_bounces=8,
                        rr_depth=3, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
     'REFERENCE': dict(samples=16384, adaptive_threshold=0.0, adaptive_min_samples=0, max_bounces=64,
                       max_diffuse_bounces=64, max_glossy_bounces=64, max_transmission_bounces=64,
+                      max_transparent_bounces=64,
                       rr_depth=8, clamp_direct=0.0, clamp_indirect=0.0, time_limit=0.0, error_target=0.0),
 }
 
@@ -68,6 +71,10 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
     max_transmission_bounces: IntProperty(
         name="Transmission", description="Maximum number of transmission bounces (glass refraction)",
         default=12, min=0, max=1024)
+    max_transparent_bounces: IntProperty(
+        name="Transparent", description="Maximum number of transparent surfaces (Transparent BSDF, Principled Alpha) "
+        "a ray passes straight through; they are not counted as bounces (Cycles' Transparent bounces)",
+        default=8, min=0, max=1024)
     rr_depth: IntProperty(
         name="Russian Roulette Depth", description="Bounce from which paths are ended at random by their throughput",
         default=3, min=1, max=1024)

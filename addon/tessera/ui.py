@@ -58,6 +58,7 @@ class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
         col.prop(settings, "max_diffuse_bounces")
         col.prop(settings, "max_glossy_bounces")
         col.prop(settings, "max_transmission_bounces")
+        col.prop(settings, "max_transparent_bounces")
         col = layout.column(align=True, heading="Clamping")
         col.prop(settings, "clamp_direct")
         col.prop(settings, "clamp_indirect")

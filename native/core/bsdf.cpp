@@ -61,110 +61,237 @@ vec3 ensure_valid_reflection(const vec3& ng, const vec3& wo, const vec3& n) {
 
 }  // namespace
 
-BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world)
-    : frame_(ensure_valid_reflection(ng, wo_world, ns)), ng_(ng), wo_world_(wo_world) {
-  wo_ = frame_.to_local(wo_world);
-  const float metallic = std::clamp(m.metallic, 0.0f, 1.0f);
-  const float transmission = std::clamp(m.transmission, 0.0f, 1.0f) * (1.0f - metallic);
-  const vec3 base = glm::clamp(m.base_color, vec3(0.0f), vec3(1.0f));
-  roughness_ = std::clamp(m.roughness, 0.0f, 1.0f);
-  const float alpha = roughness_ * roughness_;
+BSDF::Lobe& BSDF::add_lobe(Lobe::Type type, float sample_weight) {
+  Lobe& l = lobes_[num_lobes_];
+  sample_weight_[num_lobes_++] = sample_weight;
+  l.type = type;
+  l.prob = 0.0f;
+  l.k = 0.0f;
+  l.tint = vec3(1.0f);
+  l.ggx = GGX{0.0f};
+  l.a = l.b = 0.0f;
+  l.cspec0 = vec3(0.0f);
+  l.spec_ior = 1.5f;
+  l.eta = 1.0f;
+  return l;
+}
 
-  diffuse_weight_ = base * ((1.0f - metallic) * (1.0f - std::clamp(m.transmission, 0.0f, 1.0f)));
+// The Principled BSDF as Cycles 3.x builds it from its inputs (svm_closure.h,
+// CLOSURE_BSDF_PRINCIPLED_ID), each lobe scaled by the closure weight w.
+// The lobes' sample weights estimate their albedo for this wo.
+void BSDF::add_principled(const Closure& c, bool back_face) {
+  const float w = c.weight;
+  const float metallic = std::clamp(c.metallic, 0.0f, 1.0f);
+  const float transmission = std::clamp(c.transmission, 0.0f, 1.0f) * (1.0f - metallic);
+  const vec3 base = glm::clamp(c.color, vec3(0.0f), vec3(1.0f));
+  const float roughness = std::clamp(c.roughness, 0.0f, 1.0f);
+  const float alpha = roughness * roughness;
 
-  const float specular = std::max(0.0f, m.specular);
-  spec_weight_ = (specular > 1e-5f || metallic > 1e-5f) ? 1.0f - transmission : 0.0f;
-  spec_ior_ = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
-  cspec0_ = vec3(specular * 0.08f) * (1.0f - metallic) + base * metallic;
-  spec_ggx_ = GGX{alpha};
+  const vec3 diffuse_weight = base * ((1.0f - metallic) * (1.0f - std::clamp(c.transmission, 0.0f, 1.0f)) * w);
 
-  glass_weight_ = transmission;
-  glass_color_ = base;
-  const float ior = std::max(m.ior, 1e-4f);
-  eta_ = back_face ? 1.0f / ior : ior;
-  glass_ggx_ = GGX{alpha};
-  fresnel_o_ = fresnel_dielectric(wo_.z, eta_);
+  const float specular = std::max(0.0f, c.specular);
+  const float spec_weight = (specular > 1e-5f || metallic > 1e-5f) ? (1.0f - transmission) * w : 0.0f;
+  const float spec_ior = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
+  const vec3 cspec0 = vec3(specular * 0.08f) * (1.0f - metallic) + base * metallic;
 
-  // Lobe selection by estimated albedo for this wo.
+  const float glass_weight = transmission * w;
+  const float ior = std::max(c.ior, 1e-4f);
+  const float eta = back_face ? 1.0f / ior : ior;
+  const float fresnel_o = fresnel_dielectric(wo_.z, eta);
+
   const float cos_o = std::max(wo_.z, 0.0f);
-  const vec3 spec_albedo = cspec0_ + (vec3(1.0f) - cspec0_) * schlick_weight(cos_o);
-  float w[kNumLobes];
-  w[kDiffuse] = luminance(diffuse_weight_);
-  w[kSpecular] = spec_weight_ > 0.0f ? spec_weight_ * std::max(luminance(spec_albedo), 0.02f) : 0.0f;
-  w[kGlassReflect] = glass_weight_ * fresnel_o_;
-  w[kGlassRefract] = glass_weight_ * (1.0f - fresnel_o_) * std::max(luminance(glass_color_), 0.02f);
-  float total = 0.0f;
-  for (float x : w) total += x;
-  if (total > 0.0f) {
-    for (int i = 0; i < kNumLobes; ++i) {
-      prob_[i] = w[i] / total;
-      if (prob_[i] > 0.0f && !is_delta(i)) has_smooth_ = true;
+  const vec3 spec_albedo = cspec0 + (vec3(1.0f) - cspec0) * schlick_weight(cos_o);
+  const float w_diffuse = luminance(diffuse_weight);
+  const float w_spec = spec_weight > 0.0f ? spec_weight * std::max(luminance(spec_albedo), 0.02f) : 0.0f;
+  const float k_reflect = glass_weight * fresnel_o;
+  const float k_refract = glass_weight * (1.0f - fresnel_o);
+  const float w_refract = k_refract * std::max(luminance(base), 0.02f);
+
+  if (w_diffuse > 0.0f) {
+    Lobe& l = add_lobe(Lobe::kBurley, w_diffuse);
+    l.tint = diffuse_weight;
+    l.a = roughness;
+  }
+  if (w_spec > 0.0f) {
+    Lobe& l = add_lobe(Lobe::kSpecular, w_spec);
+    l.k = spec_weight;
+    l.ggx = GGX{alpha};
+    l.cspec0 = cspec0;
+    l.spec_ior = spec_ior;
+  }
+  if (k_reflect > 0.0f) {  // untinted, as Cycles 3.x's principled glass reflection
+    Lobe& l = add_lobe(Lobe::kReflection, k_reflect);
+    l.k = k_reflect;
+    l.ggx = GGX{alpha};
+  }
+  if (w_refract > 0.0f) {
+    Lobe& l = add_lobe(Lobe::kRefraction, w_refract);
+    l.k = k_refract;
+    l.tint = base;
+    l.ggx = GGX{alpha};
+    l.eta = eta;
+  }
+}
+
+void BSDF::add_closure(const Closure& c, bool back_face) {
+  if (!(c.weight > 0.0f)) return;
+  const vec3 color = glm::clamp(c.color, vec3(0.0f), vec3(1.0f));
+  // Cycles drops closures of negligible weight (CLOSURE_WEIGHT_CUTOFF).
+  if (c.kind != ClosureKind::Principled && !(max_component(color) * c.weight > 1e-5f)) return;
+  const float roughness = std::clamp(c.roughness, 0.0f, 1.0f);
+  switch (c.kind) {
+    case ClosureKind::Principled:
+      add_principled(c, back_face);
+      break;
+    case ClosureKind::Diffuse: {
+      // Cycles' bsdf_oren_nayar_setup; roughness 0 is Lambert (bsdf_diffuse).
+      Lobe& l = add_lobe(Lobe::kOrenNayar, c.weight * luminance(color));
+      l.tint = color * c.weight;
+      if (roughness > 0.0f) {
+        const float div = 1.0f / (kPi + ((3.0f * kPi - 4.0f) / 6.0f) * roughness);
+        l.a = div;
+        l.b = roughness * div;
+      } else {
+        l.a = kInvPi;
+      }
+      break;
+    }
+    case ClosureKind::Glossy: {
+      Lobe& l = add_lobe(Lobe::kReflection, c.weight * std::max(luminance(color), 0.02f));
+      l.k = c.weight;
+      l.tint = color;
+      l.ggx = GGX{roughness * roughness};
+      break;
+    }
+    case ClosureKind::Glass: {
+      // Cycles 3.x splits the Glass BSDF by the Fresnel factor at wo, and its
+      // colour tints both parts.
+      const float ior = std::max(c.ior, 1e-5f);
+      const float eta = back_face ? 1.0f / ior : ior;
+      const float fresnel_o = fresnel_dielectric(wo_.z, eta);
+      const float lum = std::max(luminance(color), 0.02f);
+      if (fresnel_o > 0.0f) {
+        Lobe& l = add_lobe(Lobe::kReflection, c.weight * fresnel_o * lum);
+        l.k = c.weight * fresnel_o;
+        l.tint = color;
+        l.ggx = GGX{roughness * roughness};
+      }
+      if (fresnel_o < 1.0f) {
+        Lobe& l = add_lobe(Lobe::kRefraction, c.weight * (1.0f - fresnel_o) * lum);
+        l.k = c.weight * (1.0f - fresnel_o);
+        l.tint = color;
+        l.ggx = GGX{roughness * roughness};
+        l.eta = eta;
+      }
+      break;
+    }
+    case ClosureKind::Transparent: {
+      Lobe& l = add_lobe(Lobe::kTransparent, c.weight * luminance(color));
+      l.k = c.weight;
+      l.tint = color;
+      break;
     }
   }
 }
 
-vec3 BSDF::eval_lobe(int lobe, const vec3& wi) const {
+BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world)
+    : frame_(ensure_valid_reflection(ng, wo_world, ns)), ng_(ng), ns_(ns), wo_world_(wo_world) {
+  wo_ = frame_.to_local(wo_world);
+  Closure c0 = m.closure(0);
+  // Principled Alpha (Cycles: mix of a white Transparent BSDF by 1 - alpha).
+  if (m.alpha < 1.0f && c0.weight > 0.0f) {
+    const float a = std::max(m.alpha, 0.0f);
+    Lobe& l = add_lobe(Lobe::kTransparent, c0.weight * (1.0f - a));
+    l.k = c0.weight * (1.0f - a);
+    c0.weight *= a;
+  }
+  add_closure(c0, back_face);
+  for (uint32_t i = 0; i < m.num_more && i + 1 < uint32_t(kMaxClosures); ++i) add_closure(m.more[i], back_face);
+
+  float total = 0.0f;
+  for (int i = 0; i < num_lobes_; ++i) total += sample_weight_[i];
+  if (total > 0.0f) {
+    for (int i = 0; i < num_lobes_; ++i) {
+      lobes_[i].prob = sample_weight_[i] / total;
+      if (lobes_[i].prob > 0.0f && !lobes_[i].delta()) has_smooth_ = true;
+    }
+  }
+}
+
+vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
   const vec3& wo = wo_;
-  switch (lobe) {
-    case kDiffuse: {
+  switch (l.type) {
+    case Lobe::kBurley: {
       // Cycles 3.x principled diffuse (Burley 2012 with its retro-reflection term).
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
       float fl = schlick_weight(wi.z), fv = schlick_weight(wo.z);
       float f = (1.0f - 0.5f * fv) * (1.0f - 0.5f * fl);
-      float rr = roughness_ * (glm::dot(wi, wo) + 1.0f);
+      float rr = l.a * (glm::dot(wi, wo) + 1.0f);
       f += rr * (fl + fv + fl * fv * (rr - 1.0f));
-      return diffuse_weight_ * (f * kInvPi);
+      return l.tint * (f * kInvPi);
     }
-    case kSpecular: {
+    case Lobe::kOrenNayar: {
+      // Cycles' bsdf_oren_nayar (the "qualitative" model, Oren and Nayar 1994):
+      // f = A + B max(0, cos(phi_i - phi_o)) sin(a) tan(b), written with dot products.
+      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
+      float t = glm::dot(wi, wo) - wi.z * wo.z;
+      if (t > 0.0f) t /= std::max(wi.z, wo.z) + std::numeric_limits<float>::min();
+      return l.tint * (l.a + l.b * t);
+    }
+    case Lobe::kSpecular: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
       vec3 wm = wi + wo;
       if (glm::dot(wm, wm) == 0.0f) return vec3(0.0f);
       wm = glm::normalize(wm);
-      vec3 F = interpolate_fresnel(glm::dot(wi, wm), spec_ior_, cspec0_);
-      return spec_weight_ * F * (spec_ggx_.D(wm) * spec_ggx_.G(wo, wi) / (4.0f * wi.z * wo.z));
+      vec3 F = interpolate_fresnel(glm::dot(wi, wm), l.spec_ior, l.cspec0);
+      return l.k * F * (l.ggx.D(wm) * l.ggx.G(wo, wi) / (4.0f * wi.z * wo.z));
     }
-    case kGlassReflect: {
+    case Lobe::kReflection: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
       vec3 wm = glm::normalize(wi + wo);
-      return vec3(glass_weight_ * fresnel_o_ * glass_ggx_.D(wm) * glass_ggx_.G(wo, wi) / (4.0f * wi.z * wo.z));
+      return l.tint * (l.k * l.ggx.D(wm) * l.ggx.G(wo, wi) / (4.0f * wi.z * wo.z));
     }
-    case kGlassRefract: {
+    case Lobe::kRefraction: {
       if (wi.z >= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
       // Generalised half vector (Walter et al. 2007), facing wo's side.
-      vec3 wm = glm::normalize(wi * eta_ + wo);
+      vec3 wm = glm::normalize(wi * l.eta + wo);
       if (wm.z < 0.0f) wm = -wm;
       float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
       if (dot_i >= 0.0f || dot_o <= 0.0f) return vec3(0.0f);
-      float denom = sqr(dot_i + dot_o / eta_);
-      float ft = glass_ggx_.D(wm) * glass_ggx_.G(wo, wi) * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
+      float denom = sqr(dot_i + dot_o / l.eta);
+      float ft = l.ggx.D(wm) * l.ggx.G(wo, wi) * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
       // No 1/eta^2 radiance scaling, as in Cycles.
-      return glass_color_ * (glass_weight_ * (1.0f - fresnel_o_) * ft);
+      return l.tint * (l.k * ft);
     }
+    case Lobe::kTransparent:
+      break;
   }
   return vec3(0.0f);
 }
 
-float BSDF::pdf_lobe(int lobe, const vec3& wi) const {
+float BSDF::pdf_lobe(const Lobe& l, const vec3& wi) const {
   const vec3& wo = wo_;
-  switch (lobe) {
-    case kDiffuse:
+  switch (l.type) {
+    case Lobe::kBurley:
+    case Lobe::kOrenNayar:
       return wi.z > 0.0f ? wi.z * kInvPi : 0.0f;
-    case kSpecular:
-    case kGlassReflect: {
+    case Lobe::kSpecular:
+    case Lobe::kReflection: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
-      const GGX& g = lobe == kSpecular ? spec_ggx_ : glass_ggx_;
       vec3 wm = glm::normalize(wi + wo);
-      return g.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm)));
+      return l.ggx.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm)));
     }
-    case kGlassRefract: {
+    case Lobe::kRefraction: {
       if (wi.z >= 0.0f || wo.z <= 0.0f) return 0.0f;
-      vec3 wm = glm::normalize(wi * eta_ + wo);
+      vec3 wm = glm::normalize(wi * l.eta + wo);
       if (wm.z < 0.0f) wm = -wm;
       float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
       if (dot_i >= 0.0f || dot_o <= 0.0f) return 0.0f;
-      float dwm_dwi = std::abs(dot_i) / sqr(dot_i + dot_o / eta_);
-      return glass_ggx_.pdf_visible(wo, wm) * dwm_dwi;
+      float dwm_dwi = std::abs(dot_i) / sqr(dot_i + dot_o / l.eta);
+      return l.ggx.pdf_visible(wo, wm) * dwm_dwi;
     }
+    case Lobe::kTransparent:
+      break;
   }
   return 0.0f;
 }
@@ -173,9 +300,10 @@ vec3 BSDF::f(const vec3& wi_world) const {
   const vec3 wi = frame_.to_local(wi_world);
   const bool reflect_side = same_side(wi_world);
   vec3 sum(0.0f);
-  for (int l = 0; l < kNumLobes; ++l) {
+  for (int i = 0; i < num_lobes_; ++i) {
+    const Lobe& l = lobes_[i];
     // The geometric side decides reflection vs transmission (no light leaks).
-    if (prob_[l] == 0.0f || is_delta(l) || (l == kGlassRefract) == reflect_side) continue;
+    if (l.prob == 0.0f || l.delta() || l.transmits() == reflect_side) continue;
     sum += eval_lobe(l, wi);
   }
   return sum;
@@ -185,59 +313,78 @@ float BSDF::pdf(const vec3& wi_world) const {
   const vec3 wi = frame_.to_local(wi_world);
   const bool reflect_side = same_side(wi_world);
   float p = 0.0f;
-  for (int l = 0; l < kNumLobes; ++l) {
-    if (prob_[l] == 0.0f || is_delta(l) || (l == kGlassRefract) == reflect_side) continue;
-    p += prob_[l] * pdf_lobe(l, wi);
+  for (int i = 0; i < num_lobes_; ++i) {
+    const Lobe& l = lobes_[i];
+    if (l.prob == 0.0f || l.delta() || l.transmits() == reflect_side) continue;
+    p += l.prob * pdf_lobe(l, wi);
   }
   return p;
 }
 
 bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
   if (wo_.z <= 0.0f) return false;
-  int lobe = -1;
+  int chosen = -1;
   float acc = 0.0f;
-  for (int l = 0; l < kNumLobes; ++l) {
-    if (prob_[l] == 0.0f) continue;
-    acc += prob_[l];
-    lobe = l;
+  for (int i = 0; i < num_lobes_; ++i) {
+    if (lobes_[i].prob == 0.0f) continue;
+    acc += lobes_[i].prob;
+    chosen = i;
     if (u_lobe < acc) break;
   }
-  if (lobe < 0) return false;
-  s.kind = lobe == kDiffuse ? BSDFSample::kDiffuse : lobe == kGlassRefract ? BSDFSample::kTransmission : BSDFSample::kGlossy;
+  if (chosen < 0) return false;
+  const Lobe& l = lobes_[chosen];
+  switch (l.type) {
+    case Lobe::kBurley:
+    case Lobe::kOrenNayar: s.kind = BSDFSample::kDiffuse; break;
+    case Lobe::kSpecular:
+    case Lobe::kReflection: s.kind = BSDFSample::kGlossy; break;
+    case Lobe::kRefraction: s.kind = BSDFSample::kTransmission; break;
+    case Lobe::kTransparent: s.kind = BSDFSample::kTransparent; break;
+  }
   vec3 wi;
-  if (is_delta(lobe)) {
-    if (lobe == kGlassRefract) {
-      if (!refract(wo_, vec3(0, 0, 1), eta_, &wi)) return false;
+  if (l.type == Lobe::kTransparent) {
+    // Straight on, exactly; weighted against the shading normal the caller
+    // multiplies by, so that f |cos| / pdf is the closure weight / prob.
+    s.wi = -wo_world_;
+    const float cos_i = std::abs(glm::dot(s.wi, ns_));
+    if (same_side(s.wi) || !(cos_i > 0.0f)) return false;
+    s.f = l.tint * l.k / cos_i;
+    s.pdf = l.prob;
+    s.delta = true;
+    return max_component(s.f) > 0.0f;
+  }
+  if (l.delta()) {
+    if (l.type == Lobe::kRefraction) {
+      if (!refract(wo_, vec3(0, 0, 1), l.eta, &wi)) return false;
     } else {
       wi = vec3(-wo_.x, -wo_.y, wo_.z);
     }
     s.wi = frame_.to_world(wi);
-    if ((lobe == kGlassRefract) == same_side(s.wi)) return false;
+    if (l.transmits() == same_side(s.wi)) return false;
     const float cos_i = std::abs(wi.z);
-    vec3 weight = lobe == kSpecular ? spec_weight_ * interpolate_fresnel(wo_.z, spec_ior_, cspec0_)
-                : lobe == kGlassReflect ? vec3(glass_weight_ * fresnel_o_)
-                : glass_color_ * (glass_weight_ * (1.0f - fresnel_o_));
+    vec3 weight = l.type == Lobe::kSpecular ? l.k * interpolate_fresnel(wo_.z, l.spec_ior, l.cspec0) : l.tint * l.k;
     s.f = weight / cos_i;
-    s.pdf = prob_[lobe];
+    s.pdf = l.prob;
     s.delta = true;
     return max_component(s.f) > 0.0f;
   }
-  switch (lobe) {
-    case kDiffuse:
+  switch (l.type) {
+    case Lobe::kBurley:
+    case Lobe::kOrenNayar:
       wi = sample_cosine_hemisphere(u);
       break;
-    case kSpecular:
-    case kGlassReflect: {
-      const GGX& g = lobe == kSpecular ? spec_ggx_ : glass_ggx_;
-      wi = reflect(wo_, g.sample_visible(wo_, u));
+    case Lobe::kSpecular:
+    case Lobe::kReflection:
+      wi = reflect(wo_, l.ggx.sample_visible(wo_, u));
       if (wi.z <= 0.0f) return false;
       break;
-    }
-    case kGlassRefract: {
-      vec3 wm = glass_ggx_.sample_visible(wo_, u);
-      if (!refract(wo_, wm, eta_, &wi) || wi.z >= 0.0f) return false;
+    case Lobe::kRefraction: {
+      vec3 wm = l.ggx.sample_visible(wo_, u);
+      if (!refract(wo_, wm, l.eta, &wi) || wi.z >= 0.0f) return false;
       break;
     }
+    case Lobe::kTransparent:
+      return false;
   }
   s.wi = frame_.to_world(wi);
   s.delta = false;

@@ -1,11 +1,18 @@
-// Blender's Principled BSDF as Cycles 3.x evaluates it (principled v1): a
-// sum of lobes, each with its Cycles weight:
-//   diffuse   (1 - metallic)(1 - transmission) base  Burley diffuse with retro-reflection
-//   specular  1 - (1 - metallic) transmission         GGX, Fresnel interpolated from cspec0
-//   glass     (1 - metallic) transmission             GGX reflection F(wo) + refraction base (1 - F(wo))
-// One lobe is sampled per bounce, chosen by its estimated albedo, and the
-// lobes are combined by one-sample MIS (pbrt-v4, 9.x; Cycles principled.h).
-// Local directions are in the shading frame, whose z points to wo's side.
+// The BSDF at a hit: the material's closures (material.h) expanded into a
+// fixed-size list of lobes, each with its weight, as Cycles' closure list:
+//   Principled (Cycles 3.x, principled v1), with its Cycles weights:
+//     diffuse   (1 - metallic)(1 - transmission) base  Burley diffuse with retro-reflection
+//     specular  1 - (1 - metallic) transmission         GGX, Fresnel interpolated from cspec0
+//     glass     (1 - metallic) transmission             GGX reflection F(wo) + refraction base (1 - F(wo))
+//   Diffuse      Lambert, or Oren-Nayar (Cycles' bsdf_oren_nayar) when rough
+//   Glossy       GGX reflection with Fresnel 1, tinted by the colour
+//   Glass        GGX reflection F(wo) + refraction (1 - F(wo)), both tinted
+//   Transparent  the ray goes on unchanged (a delta lobe), tinted
+// every closure scaled by its Mix/Add Shader weight. f and pdf are sums over
+// the lobes; one lobe is sampled per bounce, chosen by its weight times an
+// albedo estimate, so the lobes are combined by one-sample MIS (pbrt-v4, 9.x;
+// Cycles' shader_bsdf_sample_closure and _shader_bsdf_multi_eval). Local
+// directions are in the shading frame, whose z points to wo's side.
 #pragma once
 #include "material.h"
 #include "microfacet.h"
@@ -18,11 +25,17 @@ struct BSDFSample {
   vec3 f;      // BSDF value (for a delta lobe: its weight / |cos wi|)
   float pdf;   // solid-angle density (for a delta lobe: the lobe's probability)
   bool delta;  // specular: no MIS with light sampling
-  enum Kind : uint8_t { kDiffuse, kGlossy, kTransmission } kind = kDiffuse;  // of the sampled lobe (bounce limits)
+  // Of the sampled lobe (bounce limits). A transparent sample continues the
+  // path straight on: not a bounce (Cycles' separate transparent limit).
+  enum Kind : uint8_t { kDiffuse, kGlossy, kTransmission, kTransparent } kind = kDiffuse;
 };
 
 class BSDF {
  public:
+  // At most: two Principled closures (4 lobes each) or eight simple ones,
+  // plus the transparent lobe of a textured alpha.
+  static constexpr int kMaxLobes = 4 * kMaxClosures + 1;
+
   // ns, ng: shading and geometric normals, both on wo's side; back_face: wo
   // is on the back of the surface (glass is then left, not entered).
   BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world);
@@ -32,30 +45,49 @@ class BSDF {
   bool sample_f(float u_lobe, vec2 u, BSDFSample& s) const;
   // False when every lobe is a delta: light sampling cannot contribute.
   bool has_smooth_lobes() const { return has_smooth_; }
+  int num_lobes() const { return num_lobes_; }
 
  private:
-  enum Lobe { kDiffuse, kSpecular, kGlassReflect, kGlassRefract, kNumLobes };
-  vec3 eval_lobe(int lobe, const vec3& wi) const;
-  float pdf_lobe(int lobe, const vec3& wi) const;
-  bool is_delta(int lobe) const { return lobe == kSpecular ? spec_ggx_.alpha <= kSmoothAlpha : lobe >= kGlassReflect && glass_ggx_.alpha <= kSmoothAlpha; }
+  struct Lobe {
+    enum Type : uint8_t {
+      kBurley,      // Principled diffuse: tint = weight, a = roughness
+      kOrenNayar,   // Diffuse BSDF: tint x (a + b t) (Lambert: a = 1/pi, b = 0)
+      kSpecular,    // Principled specular: k x interpolated Fresnel(cspec0, spec_ior)
+      kReflection,  // GGX reflection: tint x k (a constant Fresnel is folded into k)
+      kRefraction,  // GGX refraction with relative IOR eta: tint x k
+      kTransparent, // straight on: tint x k
+    } type;
+    // No default initialisers: the lobe array is left uninitialised and
+    // add_lobe() sets every field a lobe uses (no cost per hit for the rest).
+    float prob;
+    float k;
+    vec3 tint;
+    GGX ggx;
+    float a, b;
+    vec3 cspec0;
+    float spec_ior;
+    float eta;
+    bool delta() const {
+      return type == kTransparent || ((type == kSpecular || type == kReflection || type == kRefraction) && ggx.alpha <= kSmoothAlpha);
+    }
+    bool transmits() const { return type == kRefraction || type == kTransparent; }
+  };
+
+  Lobe& add_lobe(Lobe::Type type, float sample_weight);
+  void add_principled(const Closure& c, bool back_face);
+  void add_closure(const Closure& c, bool back_face);
+  vec3 eval_lobe(const Lobe& l, const vec3& wi) const;
+  float pdf_lobe(const Lobe& l, const vec3& wi) const;
   bool same_side(const vec3& wi_world) const { return glm::dot(wi_world, ng_) > 0.0f; }
 
   Frame frame_;
   vec3 ng_;
+  vec3 ns_;             // the shading normal as given (transparent samples are weighted with it)
   vec3 wo_;             // local
   vec3 wo_world_;
-  vec3 diffuse_weight_;
-  float roughness_;
-  vec3 cspec0_;
-  float spec_weight_;
-  float spec_ior_;
-  GGX spec_ggx_;
-  float glass_weight_;
-  vec3 glass_color_;
-  float eta_;
-  float fresnel_o_;
-  GGX glass_ggx_;
-  float prob_[kNumLobes] = {};
+  int num_lobes_ = 0;
+  Lobe lobes_[kMaxLobes];
+  float sample_weight_[kMaxLobes];
   bool has_smooth_ = false;
 };
 

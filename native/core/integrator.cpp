@@ -14,6 +14,47 @@ inline vec3 clamped(vec3 c, float limit) {
   }
   return c;
 }
+
+// Transparent shadows (Cycles' shadow_all): the shadow ray passes surfaces
+// whose material lets rays through, keeping their transparent weight, and
+// is blocked by anything else or after max_hits such surfaces (the
+// transparent bounces the path has left).
+vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax, int max_hits,
+                          PathCounters& counters) {
+  vec3 tr(1.0f);
+  for (int hits = 0;; ++hits) {
+    Ray r{o, d, tmax};
+    Hit hit;
+    ++counters.rays;
+    if (!scene.intersect(r, hit)) return tr;
+    if (hits >= max_hits) return vec3(0.0f);
+    const SurfaceInteraction si = scene.interaction(r, hit);
+    const Material& base = scene.materials[si.material];
+    if (!base.may_be_transparent()) return vec3(0.0f);
+    tr *= scene.material_at(si).transparency();
+    if (!(max_component(tr) > 0.0f)) return vec3(0.0f);
+    const vec3 next = offset_ray_origin(si.p, si.p_error, si.back_face ? -si.ng : si.ng, d);
+    if (!std::isinf(tmax)) {
+      tmax -= glm::dot(next - o, d);
+      if (!(tmax > 0.0f)) return tr;
+    }
+    o = next;
+  }
+}
+
+// The solid-angle density of hittable light `light` for MIS, as seen from the
+// last scattering vertex, mis_t behind the ray's origin on the same line (the
+// ray has since passed transparent surfaces; Cycles moves the origin back by
+// mis_ray_t the same way). If another such light lies nearer on that line,
+// this segment's density is kept.
+float light_pdf_from_vertex(const LightSampler& lights, const Ray& ray, float mis_t, int light, float t_light,
+                            float pdf) {
+  float t, p;
+  vec3 le;
+  if (lights.intersect_lights(ray.o - ray.d * mis_t, ray.d, (mis_t + t_light) * (1.0f + 1e-4f), &t, &le, &p) == light)
+    return p;
+  return pdf;
+}
 }  // namespace
 
 SceneFeatures scene_features(const Scene& scene) {
@@ -24,11 +65,12 @@ SceneFeatures scene_features(const Scene& scene) {
   SceneFeatures f;
   f.hittable_emitters = area || !lights.triangles().empty() || scene.background.emits();
   f.emits = f.hittable_emitters || !lights.lights().empty();
+  for (const Material& m : scene.materials) f.transparent = f.transparent || m.may_be_transparent();
   return f;
 }
 
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features) {
+        const SceneFeatures& features, FirstHit* first) {
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
@@ -36,11 +78,17 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   // Bounces of each kind so far (BSDFSample::Kind), for the per-kind limits.
   int kind_bounces[3] = {0, 0, 0};
   const int kind_limit[3] = {options.max_diffuse_bounces, options.max_glossy_bounces, options.max_transmission_bounces};
+  // Transparent surfaces passed straight through (Cycles' transparent_bounce,
+  // its own limit), and the distance travelled through them since the last
+  // scattering vertex (Cycles' mis_ray_t): emitters found after them are
+  // MIS-weighted as seen from that vertex.
+  int transparent_bounces = 0;
+  float mis_t = 0.0f;
   // Clamping as in Cycles: contributions of bounce 0 (what the camera sees
   // emit, light sampled at the first hit) are direct, the rest indirect.
   auto add = [&](int bounce, vec3 c) { L += clamped(c, bounce == 0 ? options.clamp_direct : options.clamp_indirect); };
 
-  for (int bounce = 0;; ++bounce) {
+  for (int bounce = 0;;) {
     Hit hit;
     ++counters.rays;
     const bool found = scene.intersect(ray, hit);
@@ -53,12 +101,15 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       vec3 le;
       int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf);
       if (light >= 0) {
+        if (mis_t > 0.0f && !count_emission_fully)
+          light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf);
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
         add(bounce, beta * le * w);
       }
     }
 
     if (!found) {
+      if (first && !first->complete()) first->miss(scene.background.emits() ? scene.background.Le(ray.d) : vec3(0.0f));
       if (scene.background.emits()) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_background(ray.d));
         add(bounce, beta * scene.background.Le(ray.d) * w);
@@ -69,16 +120,33 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const SurfaceInteraction si = scene.interaction(ray, hit);
     const Material material = scene.material_at(si);
     const vec3 le = material.emission(si.back_face);
+    if (first && !first->complete()) first->surface(ray, hit.t, si, material, le);
     if (max_component(le) > 0.0f) {
       float w = 1.0f;
       if (!count_emission_fully) {
         float cos_l = std::abs(glm::dot(ray.d, si.ng));
-        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(hit.instance, hit.prim, hit.t, cos_l));
+        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(hit.instance, hit.prim, mis_t + hit.t, cos_l));
       }
       add(bounce, beta * le * w);
     }
-    if (bounce > options.max_bounces) break;
-    if (kind_bounces[0] > kind_limit[0] || kind_bounces[1] > kind_limit[1] || kind_bounces[2] > kind_limit[2]) break;
+    // As Cycles' PATH_RAY_TERMINATE_ON_NEXT_SURFACE after the last transparent bounce.
+    if (transparent_bounces > 0 && transparent_bounces >= options.max_transparent_bounces) break;
+    if (bounce > options.max_bounces || kind_bounces[0] > kind_limit[0] || kind_bounces[1] > kind_limit[1] ||
+        kind_bounces[2] > kind_limit[2]) {
+      // Out of bounces: as Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT, the
+      // ray still goes on through transparent surfaces (only their
+      // transparent closures) to the emitters behind them, as shadow rays
+      // do, so that MIS with light sampling stays whole.
+      if (!features.transparent || !features.hittable_emitters || !material.may_be_transparent()) break;
+      beta *= material.transparency();
+      if (!(max_component(beta) > 0.0f)) break;
+      ++transparent_bounces;
+      mis_t += hit.t;
+      const vec3 ng_in = si.back_face ? -si.ng : si.ng;
+      ray.o = offset_ray_origin(si.p, si.p_error, ng_in, ray.d);
+      if (!std::isinf(ray.tmax)) ray.tmax = std::max(ray.tmax - hit.t, 0.0f);
+      continue;
+    }
 
     // Shade on the side the ray arrived from (Blender surfaces are two-sided).
     const vec3 ng = si.back_face ? -si.ng : si.ng;
@@ -97,10 +165,19 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         // measured from the offset origin (far from the world origin the offset
         // is not negligible next to the distance).
         float tmax = std::isinf(ls.dist) ? kInf : (ls.dist - glm::dot(origin - si.p, ls.wi)) * (1.0f - 1e-4f);
-        ++counters.rays;
-        if (!scene.occluded(origin, ls.wi, tmax)) {
-          float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
-          add(bounce, beta * f * ls.li * (w / ls.pdf));
+        if (!features.transparent) {
+          ++counters.rays;
+          if (!scene.occluded(origin, ls.wi, tmax)) {
+            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
+            add(bounce, beta * f * ls.li * (w / ls.pdf));
+          }
+        } else {
+          const vec3 tr = shadow_transmittance(scene, origin, ls.wi, tmax,
+                                               options.max_transparent_bounces - transparent_bounces, counters);
+          if (max_component(tr) > 0.0f) {
+            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
+            add(bounce, beta * f * tr * ls.li * (w / ls.pdf));
+          }
         }
       }
     }
@@ -111,9 +188,25 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     if (!bsdf.sample_f(u_lobe, sampler.get_2d(), bs)) break;
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
     prev_bsdf_pdf = bs.pdf;
+    if (bs.kind == BSDFSample::kTransparent) {
+      // Straight on through the surface: not a bounce, and the MIS state of
+      // the last scattering vertex is kept (Cycles' path_state_next for
+      // LABEL_TRANSPARENT).
+      beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+      ++transparent_bounces;
+      mis_t += hit.t;
+      if (!features.hittable_emitters && transparent_bounces >= options.max_transparent_bounces) {
+        ++counters.skipped_rays;
+        break;
+      }
+      ray.o = offset_ray_origin(si.p, si.p_error, ng, bs.wi);
+      if (!std::isinf(ray.tmax)) ray.tmax = std::max(ray.tmax - hit.t, 0.0f);
+      continue;
+    }
     count_emission_fully = bs.delta;
     ++kind_bounces[bs.kind];
     // The next vertex would only add emission and stop: with nothing a ray
+    mis_t = 0.0f;
     // can hit that emits, skip it (same image, one ray fewer per path).
     if (!features.hittable_emitters &&
         (bounce + 1 > options.max_bounces || kind_bounces[bs.kind] > kind_limit[bs.kind])) {
@@ -134,6 +227,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
   }
   if (!is_finite(L)) {
+    ++bounce;
     ++counters.invalid_samples;
     return vec3(0.0f);
   }

@@ -2,6 +2,7 @@
 // importance sampling (Veach 1997, ch. 9; pbrt-v4, 13.4).
 #pragma once
 #include "options.h"
+#include "passes.h"
 #include "sampler.h"
 #include "scene.h"
 
@@ -23,9 +24,15 @@ struct SceneFeatures {
   // traced.
   bool hittable_emitters = true;
 };
+  // Whether any material lets rays through (Transparent BSDF, Principled
+  // Alpha): shadow rays then pass such surfaces, attenuated (Cycles'
+  // transparent shadows). Without any, shadow rays stay any-hit occlusion tests.
+  bool transparent = false;
+};
 SceneFeatures scene_features(const Scene& scene);
 
+// first: when not null, filled with what the render passes need (passes.h).
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features = SceneFeatures());
+        const SceneFeatures& features = SceneFeatures(), FirstHit* first = nullptr);
 
 }  // namespace tessera

@@ -1,6 +1,9 @@
-// A material as the core evaluates it: the parameters of Blender's Principled
-// BSDF after the add-on has folded the node graph into constants (and texture
-// references). Emission is stored per side, so one-sided emitters (Geometry >
+// A material as the core evaluates it: a short list of weighted closures, as
+// Cycles' closure list, after the add-on has flattened Mix and Add Shader
+// nodes into weights and folded the value nodes into constants (and texture
+// references). Closure 0 is stored in the Material's own fields (a single
+// Principled BSDF is just that); Mix/Add Shader add up to kMaxClosures - 1
+// more. Emission is stored per side, so one-sided emitters (Geometry >
 // Backfacing feeding the strength) cost nothing at render time.
 #pragma once
 #include "math.h"
@@ -15,25 +18,92 @@ struct TextureRef {
   bool valid() const { return texture >= 0; }
 };
 
+// Blender's shader nodes that the core evaluates (bsdf.cpp).
+enum class ClosureKind : uint8_t {
+  Principled,   // Principled BSDF (Cycles 3.x)
+  Diffuse,      // Diffuse BSDF: Lambert, Oren-Nayar when roughness > 0
+  Glossy,       // Glossy BSDF: GGX reflection, Fresnel 1, tinted by the colour
+  Glass,        // Glass BSDF: GGX reflection F(wo) + refraction 1 - F(wo), both tinted
+  Transparent,  // Transparent BSDF: the ray goes on straight, tinted
+};
+
+// One closure: its kind, its weight (the product of the Mix Shader factors on
+// its way to the output) and the parameters its kind reads.
+struct Closure {
+  ClosureKind kind = ClosureKind::Principled;
+  float weight = 1.0f;
+  vec3 color{0.8f};  // Principled base colour, or the node's Color
+  float metallic = 0.0f;
+  float roughness = 0.5f;
+  float specular = 0.5f;
+  float ior = 1.45f;
+  float transmission = 0.0f;
+};
+
+constexpr int kMaxClosures = 8;
+
 struct Material {
+  // Closure 0 (the one image textures drive).
+  ClosureKind kind = ClosureKind::Principled;
+  float weight = 1.0f;
   vec3 base_color{0.8f};
   float metallic = 0.0f;
   float roughness = 0.5f;
   float specular = 0.5f;
   float ior = 1.45f;
   float transmission = 0.0f;
+  // Principled Alpha of closure 0 (Cycles: a transparent closure of weight
+  // weight x (1 - alpha), and closure 0 scaled by alpha). The add-on folds a
+  // constant alpha into the weights; this is for an alpha read per texel.
+  float alpha = 1.0f;
+  // Closures 1 .. num_more.
+  uint32_t num_more = 0;
+  Closure more[kMaxClosures - 1];
+
   vec3 emission_front{0.0f};  // radiance leaving the front face (colour x strength)
   vec3 emission_back{0.0f};   // ... and the back face
 
-  // Inputs driven by image textures (sampled with the mesh's UV map).
-  TextureRef base_color_tex, metallic_tex, roughness_tex, emission_tex;
+  // Inputs of closure 0 driven by image textures (sampled with the mesh's UV map).
+  TextureRef base_color_tex, metallic_tex, roughness_tex, emission_tex, alpha_tex;
   TextureRef normal_tex;       // tangent-space normal map
   float normal_strength = 1.0f;
   float emission_strength_front = 1.0f, emission_strength_back = 0.0f;  // for emission_tex
 
+  int num_closures() const { return 1 + int(num_more); }
+  Closure closure(int i) const {
+    if (i > 0) return more[i - 1];
+    return Closure{kind, weight, base_color, metallic, roughness, specular, ior, transmission};
+  }
+  bool add_closure(const Closure& c) {
+    if (num_more >= kMaxClosures - 1) return false;
+    more[num_more++] = c;
+    return true;
+  }
+
   bool has_textures() const {
     return base_color_tex.valid() || metallic_tex.valid() || roughness_tex.valid() || emission_tex.valid() ||
-           normal_tex.valid();
+           normal_tex.valid() || alpha_tex.valid();
+  }
+
+  // Whether rays can pass through the surface (a Transparent closure or a
+  // Principled Alpha below 1): the integrator then needs transparent shadows.
+  bool may_be_transparent() const {
+    if (alpha_tex.valid() || (alpha < 1.0f && weight > 0.0f) || (kind == ClosureKind::Transparent && weight > 0.0f))
+      return true;
+    for (uint32_t i = 0; i < num_more; ++i)
+      if (more[i].kind == ClosureKind::Transparent && more[i].weight > 0.0f) return true;
+    return false;
+  }
+  // What a shadow ray keeps when it passes the surface: the sum of the
+  // transparent closures' weights (Cycles' shader_bsdf_transparency).
+  vec3 transparency() const {
+    const float a = std::clamp(alpha, 0.0f, 1.0f);
+    vec3 t(std::max(weight, 0.0f) * (1.0f - a));
+    if (kind == ClosureKind::Transparent) t += glm::clamp(base_color, vec3(0.0f), vec3(1.0f)) * (std::max(weight, 0.0f) * a);
+    for (uint32_t i = 0; i < num_more; ++i)
+      if (more[i].kind == ClosureKind::Transparent)
+        t += glm::clamp(more[i].color, vec3(0.0f), vec3(1.0f)) * std::max(more[i].weight, 0.0f);
+    return glm::min(t, vec3(1.0f));
   }
 
   bool is_emissive() const {

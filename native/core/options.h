@@ -15,6 +15,10 @@ struct RenderOptions {
   int max_diffuse_bounces = 1024;
   int max_glossy_bounces = 1024;        // specular and glass reflection lobes
   int max_transmission_bounces = 1024;  // glass refraction
+  // Surfaces a path or shadow ray passes straight through (Transparent BSDF,
+  // Principled Alpha), counted apart from the bounces as in Cycles (its
+  // default 8): the surface after the last one adds only its emission.
+  int max_transparent_bounces = 8;
   int rr_depth = 3;      // Russian roulette from this bounce on (integrator.cpp)
   // Cycles' sample clamping: a contribution's largest component is scaled
   // down to this; direct = camera-visible emission and lighting at the first
@@ -36,6 +40,9 @@ struct RenderOptions {
   // Stop when the estimated relative RMSE of the whole image is below this
   // (render.cpp, RenderSession::estimated_error); 0: off.
   float error_target = 0.0f;
+  // Render passes besides Combined to write (passes.h, PassBits); 0: none,
+  // and the integrator records nothing for them.
+  uint32_t passes = 0;
   // Region of the full frame to render, in pixels from the bottom-left
   // (Blender's border render); x1 <= x0 means the whole frame.
   int region_x0 = 0, region_y0 = 0, region_x1 = 0, region_y1 = 0;

@@ -46,7 +46,9 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
         // are anti-correlated).
         Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s >> 1), options_.seed + (s & 1) * 0x9e3779b9U);
         vec2 offset = filter_.sample(sampler.get_2d());
-        Ray ray = scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset);
+        // The aperture sample is drawn only with depth of field (pinhole images stay as they were).
+        const vec2 u_lens = scene_.camera.has_lens() ? sampler.get_2d() : vec2(0.5f);
+        Ray ray = scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
         film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
       }
       film_.set_count(i, sample_end);

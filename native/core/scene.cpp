@@ -226,6 +226,7 @@ Material Scene::textured_material(const Material& base, vec2 uv) const {
   }
   if (m.metallic_tex.valid()) m.metallic = texture_value(m.metallic_tex, uv);
   if (m.roughness_tex.valid()) m.roughness = texture_value(m.roughness_tex, uv);
+  if (m.alpha_tex.valid()) m.alpha = texture_value(m.alpha_tex, uv);  // per texel: cut-outs
   if (m.emission_tex.valid()) {
     const vec4 c = textures[m.emission_tex.texture].eval(uv);
     const vec3 e = m.emission_tex.channel == 1 ? vec3(c.w) : vec3(c);

@@ -43,6 +43,36 @@ vec3 to_vec3(const std::vector<float>& v, const char* what) {
   return vec3(v[0], v[1], v[2]);
 }
 
+ClosureKind to_closure_kind(const std::string& kind) {
+  if (kind == "PRINCIPLED") return ClosureKind::Principled;
+  if (kind == "DIFFUSE") return ClosureKind::Diffuse;
+  if (kind == "GLOSSY") return ClosureKind::Glossy;
+  if (kind == "GLASS") return ClosureKind::Glass;
+  if (kind == "TRANSPARENT") return ClosureKind::Transparent;
+  throw std::invalid_argument("unknown closure kind '" + kind +
+                              "'; expected PRINCIPLED, DIFFUSE, GLOSSY, GLASS or TRANSPARENT");
+}
+
+// A closure from a dict with the keys of add_material's closure-0 arguments
+// ("kind", "weight", "base_color", "metallic", "roughness", "specular", "ior",
+// "transmission"); missing keys take the Principled defaults.
+Closure to_closure(const py::dict& d) {
+  Closure c;
+  for (auto item : d) {
+    const std::string key = py::str(item.first);
+    if (key == "kind") c.kind = to_closure_kind(item.second.cast<std::string>());
+    else if (key == "weight") c.weight = item.second.cast<float>();
+    else if (key == "base_color") c.color = to_vec3(item.second.cast<std::vector<float>>(), "closure base_color");
+    else if (key == "metallic") c.metallic = item.second.cast<float>();
+    else if (key == "roughness") c.roughness = item.second.cast<float>();
+    else if (key == "specular") c.specular = item.second.cast<float>();
+    else if (key == "ior") c.ior = item.second.cast<float>();
+    else if (key == "transmission") c.transmission = item.second.cast<float>();
+    else throw std::invalid_argument("add_material: unknown closure parameter '" + key + "'");
+  }
+  return c;
+}
+
 // A world-space point in the committed scene's render space (Scene::render_origin).
 vec3 to_render_space(const Scene& s, const vec3& p) { return vec3(glm::dvec3(p) - glm::dvec3(s.render_origin)); }
 
@@ -82,6 +112,20 @@ class PySession {
     std::copy(p.begin(), p.end(), out.mutable_data());
     return out;
   }
+  // One enabled data pass by its Blender name: (height, width, channels).
+  py::array_t<float> pass_pixels(const std::string& name) const {
+    for (int b = 0; b < kNumDataPasses; ++b) {
+      const uint32_t bit = 1u << b;
+      if (name != pass_name(bit)) continue;
+      std::vector<float> p = session_.pass_pixels(bit);
+      if (p.empty())
+        throw std::invalid_argument("pass '" + name + "' was not enabled; add it to RenderOptions.passes");
+      py::array_t<float> out({session_.height(), session_.width(), pass_channels(bit)});
+      std::copy(p.begin(), p.end(), out.mutable_data());
+      return out;
+    }
+    throw std::invalid_argument("unknown pass '" + name + "'; the passes are the keys of PASSES");
+  }
   py::dict stats() const {
     RenderStats s = session_.stats();
     py::dict d;
@@ -110,6 +154,11 @@ class PySession {
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "Tessera's native core: scene building, BVH and path tracing";
+  {
+    py::dict passes;  // Blender pass name -> RenderOptions.passes bit
+    for (int b = 0; b < kNumDataPasses; ++b) passes[pass_name(1u << b)] = 1u << b;
+    m.attr("PASSES") = passes;
+  }
 
   py::class_<RenderOptions>(m, "RenderOptions")
       .def(py::init<>())
@@ -129,6 +178,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("threads", &RenderOptions::threads)
       .def_readwrite("tile_size", &RenderOptions::tile_size)
       .def_readwrite("filter_width", &RenderOptions::filter_width)
+      .def_readwrite("passes", &RenderOptions::passes, "Data passes to write: a sum of PASSES values")
       .def_readwrite("region_x0", &RenderOptions::region_x0)
       .def_readwrite("region_y0", &RenderOptions::region_y0)
       .def_readwrite("region_x1", &RenderOptions::region_x1)
@@ -137,6 +187,7 @@ PYBIND11_MODULE(_core, m) {
   py::class_<Scene, std::shared_ptr<Scene>>(m, "Scene")
       .def(py::init<>())
       .def(
+      .def_readwrite("max_transparent_bounces", &RenderOptions::max_transparent_bounces)
           "add_mesh",
           [](Scene& s, const Array<float>& positions, const Array<uint32_t>& indices, std::optional<Array<uint32_t>> slots,
              std::optional<Array<float>> normals, std::optional<Array<float>> uvs) {
@@ -207,7 +258,8 @@ PYBIND11_MODULE(_core, m) {
           "add_material",
           [](Scene& s, std::vector<float> base_color, float metallic, float roughness, float specular, float ior,
              float transmission, std::vector<float> emission_front, std::vector<float> emission_back,
-             py::dict textures, float normal_strength, float emission_strength_front, float emission_strength_back) {
+             py::dict textures, float normal_strength, float emission_strength_front, float emission_strength_back,
+             const std::string& kind, float weight, float alpha, std::vector<py::dict> closures) {
             Material m;
             m.base_color = to_vec3(base_color, "base_color");
             m.metallic = metallic;
@@ -229,6 +281,12 @@ PYBIND11_MODULE(_core, m) {
               TextureRef r{ref.first, uint32_t(ref.second)};
               if (key == "base_color") m.base_color_tex = r;
               else if (key == "metallic") m.metallic_tex = r;
+            m.kind = to_closure_kind(kind);
+            m.weight = weight;
+            m.alpha = alpha;
+            if (closures.size() > size_t(kMaxClosures - 1))
+              throw std::invalid_argument("add_material: at most " + std::to_string(kMaxClosures) + " closures in all");
+            for (const py::dict& d : closures) m.add_closure(to_closure(d));
               else if (key == "roughness") m.roughness_tex = r;
               else if (key == "emission") m.emission_tex = r;
               else if (key == "normal") m.normal_tex = r;
@@ -241,7 +299,12 @@ PYBIND11_MODULE(_core, m) {
           py::arg("ior") = 1.45f, py::arg("transmission") = 0.0f,
           py::arg("emission_front") = std::vector<float>{0, 0, 0}, py::arg("emission_back") = std::vector<float>{0, 0, 0},
           py::arg("textures") = py::dict(), py::arg("normal_strength") = 1.0f,
-          py::arg("emission_strength_front") = 1.0f, py::arg("emission_strength_back") = 0.0f)
+          py::arg("emission_strength_front") = 1.0f, py::arg("emission_strength_back") = 0.0f,
+          py::arg("kind") = "PRINCIPLED", py::arg("weight") = 1.0f, py::arg("alpha") = 1.0f,
+          py::arg("closures") = std::vector<py::dict>(),
+          "Adds a material: closure 0 (kind, weight and the Principled-named parameters; base_color is the "
+          "node's Color for other kinds), Principled alpha of closure 0, and more closures as dicts with the "
+          "same keys; returns its index.")
       .def(
           "add_light",
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
@@ -252,6 +315,7 @@ PYBIND11_MODULE(_core, m) {
             else if (type == "SPOT") l.type = LightType::Spot;
             else if (type == "SUN") l.type = LightType::Sun;
             else if (type == "AREA") l.type = LightType::Area;
+              else if (key == "alpha") m.alpha_tex = r;
             else throw std::invalid_argument("unknown light type '" + type + "'; expected POINT, SPOT, SUN or AREA");
             l.position = to_vec3(position, "position");
             l.direction = glm::normalize(to_vec3(direction, "direction"));
@@ -292,7 +356,8 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "set_camera",
           [](Scene& s, const std::string& type, const Array<float>& matrix, float left, float right, float bottom,
-             float top, float clip_start, float clip_end, int width, int height) {
+             float top, float clip_start, float clip_end, int width, int height, float aperture_radius,
+             float focus_distance, int blades, float blades_rotation, float aperture_ratio) {
             if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
             Camera& c = s.camera;
             c.type = type == "ORTHO" ? Camera::Type::Orthographic : Camera::Type::Perspective;
@@ -302,7 +367,9 @@ PYBIND11_MODULE(_core, m) {
             c.width = width, c.height = height;
           },
           py::arg("type"), py::arg("matrix"), py::arg("left"), py::arg("right"), py::arg("bottom"), py::arg("top"),
-          py::arg("clip_start"), py::arg("clip_end"), py::arg("width"), py::arg("height"))
+          py::arg("clip_start"), py::arg("clip_end"), py::arg("width"), py::arg("height"),
+          py::arg("aperture_radius") = 0.0f, py::arg("focus_distance") = 10.0f, py::arg("blades") = 0,
+          py::arg("blades_rotation") = 0.0f, py::arg("aperture_ratio") = 1.0f)
       .def("commit",
            [](Scene& s) {
              py::gil_scoped_release release;
@@ -320,6 +387,11 @@ PYBIND11_MODULE(_core, m) {
             SurfaceInteraction si = s.interaction(r, h);
             const glm::dvec3 p = glm::dvec3(si.p) + glm::dvec3(s.render_origin);
             return py::make_tuple(h.t, h.instance, s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim],
+            c.aperture_radius = std::max(aperture_radius, 0.0f);
+            c.focus_distance = focus_distance;
+            c.blades = blades;
+            c.blades_rotation = blades_rotation;
+            c.aperture_ratio = aperture_ratio > 0.0f ? aperture_ratio : 1.0f;
                                   std::vector<double>{p.x, p.y, p.z}, std::vector<float>{si.ng.x, si.ng.y, si.ng.z},
                                   si.back_face);
           },
@@ -347,6 +419,8 @@ PYBIND11_MODULE(_core, m) {
       .def("render", &PySession::render, "Renders to completion on the calling thread (GIL released).")
       .def("cancel", &PySession::cancel)
       .def("pixels", &PySession::pixels, "RGBA float32 array (height, width, 4), rows bottom to top.")
+      .def("pass_pixels", &PySession::pass_pixels, py::arg("name"),
+           "An enabled data pass by its Blender name: float32 (height, width, channels), rows bottom to top.")
       .def("stats", &PySession::stats)
       .def_property_readonly("samples_done", [](PySession& p) { return p.session().samples_done(); })
       .def_property_readonly("samples_total", [](PySession& p) { return p.session().samples_total(); })

@@ -1,6 +1,7 @@
 """The camera, framed exactly as Blender frames it: Blender's own view_frame
 (sensor fit, shift, render size and pixel aspect) gives the rectangle the
-core maps the image onto."""
+core maps the image onto; depth of field as Cycles converts it (thin lens of
+radius focal length / (2 f-stop), focus distance along the view axis)."""
 
 import numpy as np
 
@@ -36,4 +37,25 @@ def export_camera(depsgraph, width, height, report=None):
         kind = "PERSP"
     return dict(type=kind, matrix=matrix,
                 left=min(xs), right=max(xs), bottom=min(ys), top=max(ys),
-                clip_start=cam.clip_start, clip_end=cam.clip_end, width=width, height=height)
+                clip_start=cam.clip_start, clip_end=cam.clip_end, width=width, height=height,
+                **depth_of_field(cam, cam_obj, depsgraph))
+
+
+def depth_of_field(cam, cam_obj, depsgraph):
+    """Scene.set_camera's lens arguments, as Cycles' blender_camera_from_object:
+    aperture radius = focal length (mm, to metres) / (2 f-stop), or 1 / (2
+    f-stop) for an orthographic camera; the focus object's distance along the
+    camera's view axis, else the focus distance."""
+    dof = cam.dof
+    if not dof.use_dof:
+        return dict(aperture_radius=0.0)
+    fstop = max(dof.aperture_fstop, 1e-5)
+    radius = 1.0 / (2.0 * fstop) if cam.type == 'ORTHO' else cam.lens * 1e-3 / (2.0 * fstop)
+    focus = dof.focus_distance
+    if dof.focus_object is not None:
+        target = dof.focus_object.evaluated_get(depsgraph).matrix_world.translation
+        m = cam_obj.matrix_world.normalized()
+        view = m.col[2].xyz.normalized()
+        focus = abs(view.dot(m.translation - target))
+    return dict(aperture_radius=radius, focus_distance=focus, blades=dof.aperture_blades,
+                blades_rotation=dof.aperture_rotation, aperture_ratio=dof.aperture_ratio)

@@ -1,7 +1,9 @@
-"""Materials: the node graph behind each material's Surface output, folded
-into the Principled parameters the core evaluates (base colour, metallic,
-roughness, specular, IOR, transmission, and emission per face side). Reads
-both the Blender 3.x and 4.x names of the Principled inputs."""
+"""Materials: the node graph behind each material's Surface output, flattened
+into the core's closure list (Principled, Diffuse, Glossy, Glass and
+Transparent BSDFs weighted by Mix and Add Shader nodes, Principled Alpha, and
+emission per face side), with value nodes folded into constants and image
+textures sampled per texel where they drive an input directly. Reads both the
+Blender 3.x and 4.x names of the Principled inputs."""
 
 import bpy
 import numpy as np
@@ -131,9 +133,18 @@ class MaterialCache:
 def material_params(material, report, texture=None):
     front = _side_params(material, report, backfacing=False, texture=texture)
     back = _side_params(material, report, backfacing=True, texture=texture)
+    if _surface_key(front) != _surface_key(back):
+        report.warn(material.name, f"Material '{material.name}': its surface shaders differ between front and back "
+                                   f"faces (Geometry > Backfacing reaching a shader mix); Tessera shades both sides "
+                                   f"with the front side's and keeps only the emission per side.")
     front["emission_back"] = back["emission_front"]
     front["emission_strength_back"] = back.get("emission_strength_front", 0.0)
     return front
+
+
+def _surface_key(params):
+    keys = ("kind", "weight", "base_color", "metallic", "roughness", "specular", "ior", "transmission", "alpha")
+    return (tuple(params.get(k) for k in keys), tuple(tuple(sorted(c.items())) for c in params.get("closures", [])))
 
 
 def _textured(ev, shader, name, params, key, texture):
@@ -158,6 +169,217 @@ def _textured(ev, shader, name, params, key, texture):
     return ev.socket(socket)
 
 
+# Closure parameters in the core's order (add_material's keywords), with the
+# Principled defaults; the other kinds read base_color as their Color.
+_CLOSURE_DEFAULTS = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
+                         transmission=0.0)
+MAX_CLOSURES = 8  # core/material.h kMaxClosures
+
+# Shader nodes Tessera does not model, rendered as the closest one it does.
+_APPROXIMATED = {
+    'BSDF_ANISOTROPIC': ("GLOSSY", "an isotropic Glossy BSDF"),
+    'BSDF_REFRACTION': ("GLASS", "a Glass BSDF (with its reflection)"),
+}
+
+
+def _linked_node(socket):
+    """The node feeding a socket through reroutes and valid, unmuted links, or None."""
+    while socket.is_linked:
+        link = socket.links[0]
+        if not link.is_valid or link.is_muted:
+            return None
+        node = link.from_node
+        if node.type != 'REROUTE':
+            return node
+        socket = node.inputs[0]
+    return None
+
+
+# Value nodes whose output is the same everywhere on the surface (for a
+# constant input); anything else (textures, Fresnel, Layer Weight, ...)
+# varies, and Tessera takes one value for it.
+_CONSTANT_NODES = {'VALUE', 'RGB', 'MATH', 'MIX', 'MIX_RGB', 'SEPRGB', 'SEPARATE_COLOR', 'SEPARATE_RGB', 'COMBRGB',
+                   'COMBINE_COLOR', 'COMBINE_RGB', 'REROUTE', 'CLAMP', 'MAP_RANGE', 'INVERT', 'GAMMA',
+                   'BRIGHTCONTRAST', 'HUE_SAT'}
+
+
+def _varying_source(socket, depth=0):
+    """The first node upstream of a socket whose output varies over the
+    surface, or None when the socket's value is one constant per face side."""
+    node = _linked_node(socket)
+    if node is None or depth > 64:
+        return None
+    if node.type == 'NEW_GEOMETRY':
+        out = socket.links[0].from_socket.name if socket.is_linked else ''
+        return None if out == 'Backfacing' else node
+    if node.type not in _CONSTANT_NODES:
+        return node
+    for inp in node.inputs:
+        found = _varying_source(inp, depth + 1)
+        if found is not None:
+            return found
+    return None
+
+
+class _Flattener:
+    """Flattens the shader tree behind the Surface output into Cycles' closure
+    list: Mix Shader weights its two inputs by 1 - Fac and Fac, Add Shader
+    sums them, Principled Alpha mixes in a white Transparent BSDF. Emission
+    closures become the side's emission. One closure (the first that an image
+    texture drives, else the first) gets the core's per-texel textures."""
+
+    def __init__(self, ev, params, texture):
+        self.ev = ev
+        self.params = params
+        self.texture = texture
+        self.closures = []
+        self.emission = [0.0, 0.0, 0.0]
+        self.emission_tex_strength = None
+        self.textured = None  # index of the closure the textures belong to
+
+    def socket(self, socket, weight, depth=0):
+        node = _linked_node(socket)
+        if node is None or weight <= 0.0:
+            return  # an unconnected shader input adds nothing (as in Cycles)
+        if depth > 64:
+            self.ev.warn("its shader tree is nested too deeply; the rest is ignored.")
+            return
+        self.node(node, weight, depth)
+
+    def node(self, node, weight, depth=0):
+        t = node.type
+        ev = self.ev
+        if t == 'MIX_SHADER':
+            fac = min(max(to_float(ev.socket(node.inputs[0])), 0.0), 1.0)
+            varying = _varying_source(node.inputs[0])
+            if varying is not None:
+                ev.warn(f"the factor of Mix Shader '{node.name}' varies over the surface ('{varying.name}', "
+                        f"{varying.bl_idname}), which Tessera does not evaluate per pixel; the shaders are mixed "
+                        f"with the constant {fac:.3f} instead (an image's average, or the value of the nodes).")
+            self.socket(node.inputs[1], weight * (1.0 - fac), depth + 1)
+            self.socket(node.inputs[2], weight * fac, depth + 1)
+        elif t == 'ADD_SHADER':
+            self.socket(node.inputs[0], weight, depth + 1)
+            self.socket(node.inputs[1], weight, depth + 1)
+        elif t == 'BSDF_PRINCIPLED':
+            self.principled(node, weight)
+        elif t == 'BSDF_DIFFUSE':
+            self.add(node, "DIFFUSE", weight, color='Color', roughness='Roughness')
+        elif t in ('BSDF_GLOSSY', 'BSDF_ANISOTROPIC'):
+            self.distribution(node)
+            if t == 'BSDF_ANISOTROPIC':
+                self.approximated(node)
+            self.add(node, "GLOSSY", weight, color='Color', roughness='Roughness')
+        elif t in ('BSDF_GLASS', 'BSDF_REFRACTION'):
+            self.distribution(node)
+            if t == 'BSDF_REFRACTION':
+                self.approximated(node)
+            self.add(node, "GLASS", weight, color='Color', roughness='Roughness', ior='IOR')
+        elif t == 'BSDF_TRANSPARENT':
+            self.add(node, "TRANSPARENT", weight, color='Color')
+        elif t == 'EMISSION':
+            strength = to_float(ev.input(node, 'Strength', 1.0))
+            color = to_color(ev.input(node, 'Color', (1.0, 1.0, 1.0)))
+            for i in range(3):
+                self.emission[i] += weight * strength * color[i]
+        elif t == 'HOLDOUT':
+            ev.warn(f"Holdout '{node.name}' is not supported; it adds nothing to the surface.")
+        else:
+            color = ev.input(node, 'Color', (0.8, 0.8, 0.8)) if 'Color' in node.inputs else (0.8, 0.8, 0.8)
+            ev.warn(f"shader '{node.name}' ({node.bl_idname}) is not supported yet; it is rendered as a "
+                    f"diffuse surface of its colour.")
+            self.closures.append(dict(_CLOSURE_DEFAULTS, kind="DIFFUSE", weight=weight, base_color=to_color(color),
+                                      roughness=0.0))
+
+    def approximated(self, node):
+        _, what = _APPROXIMATED[node.type]
+        self.ev.warn(f"'{node.name}' ({node.bl_idname}) is not supported; it is rendered as {what}.")
+
+    def distribution(self, node):
+        d = getattr(node, 'distribution', 'GGX')
+        if d not in ('GGX', 'SHARP'):
+            self.ev.warn(f"'{node.name}' uses the {d} microfacet distribution; Tessera renders GGX (single "
+                         f"scattering) instead.")
+
+    def _claim_textures(self, node):
+        """Whether this node's inputs may use the core's per-texel textures
+        (only one closure can): the first node with a directly connected
+        image texture."""
+        if self.texture is None or self.textured is not None:
+            return False
+        return any(image_texture_node(s) is not None for s in node.inputs if s.is_linked)
+
+    def add(self, node, kind, weight, color=None, roughness=None, ior=None):
+        ev = self.ev
+        claim = self._claim_textures(node)
+        tex = self.texture if claim else None
+        c = dict(_CLOSURE_DEFAULTS, kind=kind, weight=weight)
+        if color:
+            c["base_color"] = to_color(_textured(ev, node, color, self.params, "base_color", tex))
+        if roughness:
+            c["roughness"] = 0.0 if getattr(node, 'distribution', '') == 'SHARP' else \
+                to_float(_textured(ev, node, roughness, self.params, "roughness", tex))
+        if ior:
+            c["ior"] = to_float(ev.input(node, ior, 1.45))
+        if claim and self.params.get("textures"):
+            self.textured = len(self.closures)
+        self.closures.append(c)
+
+    def principled(self, node, weight):
+        ev = self.ev
+        claim = self._claim_textures(node) or (self.texture is not None and self.textured is None
+                                               and _linked_node(node.inputs['Normal']) is not None)
+        tex = self.texture if claim else None
+        params = self.params
+        c = dict(kind="PRINCIPLED", weight=weight)
+        c["base_color"] = to_color(_textured(ev, node, 'Base Color', params, "base_color", tex))
+        c["metallic"] = to_float(_textured(ev, node, 'Metallic', params, "metallic", tex))
+        c["roughness"] = to_float(_textured(ev, node, 'Roughness', params, "roughness", tex))
+        c["specular"] = to_float(ev.input(node, _find(node, "specular")))
+        c["ior"] = to_float(ev.input(node, 'IOR', 1.45))
+        c["transmission"] = to_float(ev.input(node, _find(node, "transmission")))
+        # Alpha (Cycles: Mix Shader of a white Transparent BSDF by 1 - alpha):
+        # per texel when an image drives it directly, else folded into weights.
+        alpha_tex = image_texture_node(node.inputs['Alpha']) if (tex is not None and 'Alpha' in node.inputs) else None
+        alpha = to_float(_textured(ev, node, 'Alpha', params, "alpha", tex)) if 'Alpha' in node.inputs else 1.0
+        alpha = min(max(alpha, 0.0), 1.0)
+        emission = to_color(_textured(ev, node, _find(node, "emission"), params, "emission", tex))
+        strength = to_float(ev.input(node, 'Emission Strength', 1.0))
+        # Emission is mixed like the closures it comes with, alpha included.
+        for i in range(3):
+            self.emission[i] += weight * alpha * strength * emission[i]
+        if tex is not None and "emission" in params.get("textures", {}):
+            self.emission_tex_strength = weight * alpha * strength
+        if tex is not None:
+            _normal_map(ev, node, params, tex)
+        elif _linked_node(node.inputs['Normal']) is not None:
+            ev.warn(f"the Normal input of '{node.name}' is ignored: only one shader of a mix (the first with "
+                    f"image textures) gets per-pixel textures and normal maps.")
+        if alpha_tex is not None and "alpha" in params.get("textures", {}):
+            c["alpha"] = alpha  # the image's average; the core reads the texel
+        elif alpha < 1.0:
+            self.closures.append(dict(_CLOSURE_DEFAULTS, kind="TRANSPARENT", weight=weight * (1.0 - alpha),
+                                      base_color=(1.0, 1.0, 1.0)))
+            c["weight"] = weight * alpha
+        if tex is not None and params.get("textures"):
+            self.textured = len(self.closures)
+        self.closures.append(c)
+
+    def result(self):
+        """Closure 0 (the textured one first) and the rest, at most MAX_CLOSURES."""
+        closures = [c for c in self.closures if c["weight"] > 0.0]
+        textured = self.closures[self.textured] if self.textured is not None else None
+        if textured is not None:
+            closures = [textured] + [c for c in closures if c is not textured]
+        if len(closures) > MAX_CLOSURES:
+            keep = closures[:1] + sorted(closures[1:], key=lambda c: -c["weight"])[:MAX_CLOSURES - 1]
+            dropped = len(closures) - len(keep)
+            self.ev.warn(f"it mixes {len(closures)} shaders; Tessera keeps {MAX_CLOSURES} and drops the "
+                         f"{dropped} of smallest weight.")
+            closures = keep
+        return closures
+
+
 def _side_params(material, report, backfacing, texture=None):
     params = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
                   transmission=0.0, emission_front=(0.0, 0.0, 0.0))
@@ -171,42 +393,30 @@ def _side_params(material, report, backfacing, texture=None):
         params["base_color"] = (0.0, 0.0, 0.0)  # Cycles renders a material without surface as black
         return params
     ev = Evaluator(material.name, report, backfacing, image_average)
-    link = out.inputs['Surface'].links[0]
-    shader = link.from_node
-    while shader.type == 'REROUTE' and shader.inputs[0].is_linked:
-        shader = shader.inputs[0].links[0].from_node
-    t = shader.type
-    if t == 'BSDF_PRINCIPLED':
-        tex = texture
-        params["base_color"] = to_color(_textured(ev, shader, 'Base Color', params, "base_color", tex))
-        params["metallic"] = to_float(_textured(ev, shader, 'Metallic', params, "metallic", tex))
-        params["roughness"] = to_float(_textured(ev, shader, 'Roughness', params, "roughness", tex))
-        params["specular"] = to_float(ev.input(shader, _find(shader, "specular")))
-        params["ior"] = to_float(ev.input(shader, 'IOR', 1.45))
-        params["transmission"] = to_float(ev.input(shader, _find(shader, "transmission")))
-        emission = to_color(_textured(ev, shader, _find(shader, "emission"), params, "emission", tex))
-        strength = to_float(ev.input(shader, 'Emission Strength', 1.0))
-        params["emission_front"] = tuple(c * strength for c in emission)
-        params["emission_strength_front"] = strength
-        _normal_map(ev, shader, params, tex)
-    elif t == 'BSDF_DIFFUSE':
-        params["base_color"] = to_color(ev.input(shader, 'Color'))
-        params["roughness"] = 1.0
-        params["specular"] = 0.0
-    elif t == 'EMISSION':
-        strength = to_float(ev.input(shader, 'Strength', 1.0))
-        params["base_color"] = (0.0, 0.0, 0.0)
-        params["specular"] = 0.0
-        params["emission_front"] = tuple(c * strength for c in to_color(ev.input(shader, 'Color')))
-    else:
-        color = ev.input(shader, 'Color', (0.8, 0.8, 0.8)) if 'Color' in shader.inputs else (0.8, 0.8, 0.8)
-        params["base_color"] = to_color(color)
-        ev.warn(f"shader '{shader.name}' ({shader.bl_idname}) is not supported yet; it is rendered as a "
-                f"diffuse surface of its colour.")
+    flat = _Flattener(ev, params, texture)
+    flat.socket(out.inputs['Surface'], 1.0)
+    closures = flat.result()
+    params["emission_front"] = tuple(flat.emission)
+    if flat.emission_tex_strength is not None:
+        params["emission_strength_front"] = flat.emission_tex_strength
+    if closures:
+        first = closures[0]
+        params["kind"] = first["kind"]
+        params["weight"] = float(first["weight"])
+        for key in _CLOSURE_DEFAULTS:
+            params[key] = first.get(key, _CLOSURE_DEFAULTS[key])
+        if "alpha" in first:
+            params["alpha"] = float(first["alpha"])
+        params["closures"] = [{k: (float(v) if isinstance(v, (int, float)) else v) for k, v in c.items()
+                               if k != "alpha"} for c in closures[1:]]
+    else:  # only emission, or nothing: no scattering
+        params.update(weight=0.0, base_color=(0.0, 0.0, 0.0), specular=0.0)
     if "textures" in params and backfacing:
         params.pop("textures")  # one set of texture references, from the front side
     params["base_color"] = tuple(float(min(max(c, 0.0), 1.0)) for c in params["base_color"][:3])
     params["emission_front"] = tuple(float(max(c, 0.0)) for c in params["emission_front"][:3])
+    for c in params.get("closures", []):
+        c["base_color"] = tuple(float(min(max(x, 0.0), 1.0)) for x in c["base_color"][:3])
     return params
 
 

@@ -1,0 +1,503 @@
+// Closure-list materials (material.h, bsdf.cpp): Diffuse, Glossy, Glass,
+// Transparent and Principled closures summed with Mix/Add Shader weights;
+// Principled Alpha and transparent paths and shadows (integrator.cpp); depth
+// of field (camera.h).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <glm/gtc/matrix_transform.hpp>
+#include <random>
+
+#include "core/bsdf.h"
+#include "core/integrator.h"
+#include "core/render.h"
+#include "scene_fixtures.h"
+
+using namespace tessera;
+
+namespace {
+
+Closure closure(ClosureKind kind, float weight, vec3 color, float roughness = 0.5f, float ior = 1.45f) {
+  Closure c;
+  c.kind = kind;
+  c.weight = weight;
+  c.color = color;
+  c.roughness = roughness;
+  c.ior = ior;
+  return c;
+}
+
+// A material whose closures are the given ones (closure 0 in the fields).
+Material with_closures(std::initializer_list<Closure> cs) {
+  Material m;
+  bool first = true;
+  for (const Closure& c : cs) {
+    if (first) {
+      m.kind = c.kind, m.weight = c.weight, m.base_color = c.color, m.metallic = c.metallic;
+      m.roughness = c.roughness, m.specular = c.specular, m.ior = c.ior, m.transmission = c.transmission;
+      first = false;
+    } else {
+      EXPECT_TRUE(m.add_closure(c));
+    }
+  }
+  return m;
+}
+
+vec3 random_dir(std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  return sample_uniform_sphere(vec2(u(rng), u(rng)));
+}
+
+// Directional albedo rho(wo) = integral of f |cos| over the sphere, two ways:
+// by sampling the BSDF (delta lobes included) and by quadrature over a fine
+// equal-area grid (smooth lobes only; midpoints of 1000 x 2000 cells in
+// (z, phi)). They agree only if sample_f draws directions with the density
+// pdf() reports. Also the integral of pdf over the sphere.
+struct Albedo {
+  double sampled = 0, uniform = 0, pdf_integral = 0, delta = 0;
+};
+Albedo albedo(const Material& m, const vec3& wo, int n = 400000, bool back_face = false) {
+  const vec3 normal(0, 0, 1);
+  const BSDF bsdf(normal, normal, m, back_face, wo);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  Albedo a;
+  for (int i = 0; i < n; ++i) {
+    BSDFSample s;
+    if (!bsdf.sample_f(u(rng), vec2(u(rng), u(rng)), s)) continue;
+    const double w = double(luminance(s.f)) * std::abs(s.wi.z) / s.pdf;
+    a.sampled += w;
+    if (s.delta) {
+      a.delta += w;
+    } else {
+      // What sample_f returned is what f and pdf say for that direction.
+      EXPECT_EQ(s.f, bsdf.f(s.wi));
+      EXPECT_EQ(s.pdf, bsdf.pdf(s.wi));
+    }
+  }
+  a.sampled /= n, a.delta /= n;
+  const int nz = 1000, nphi = 2000;
+  for (int iz = 0; iz < nz; ++iz) {
+    for (int ip = 0; ip < nphi; ++ip) {
+      const vec3 wi = sample_uniform_sphere(vec2((iz + 0.5f) / nz, (ip + 0.5f) / nphi));
+      a.uniform += double(luminance(bsdf.f(wi))) * std::abs(wi.z) / kUniformSpherePdf;
+      a.pdf_integral += bsdf.pdf(wi) / kUniformSpherePdf;
+    }
+  }
+  a.uniform /= double(nz) * nphi, a.pdf_integral /= double(nz) * nphi;
+  return a;
+}
+
+const vec3 kWo = glm::normalize(vec3(0.3f, -0.2f, 0.8f));
+
+}  // namespace
+
+// ------------------------------------------------------------------ BSDF
+
+// Energy, and sampling consistent with f and pdf, for each closure kind and
+// for mixes: white closures reflect at most what arrives (Lambert, smooth
+// glass and transparency exactly all of it); the BSDF-sampled estimate of the
+// albedo equals the uniform one; the pdf integrates to at most 1.
+TEST(Materials, ClosuresConserveEnergyAndSampleWhatPdfSays) {
+  struct Case { const char* name; Material m; double lo, hi; bool smooth; };
+  const vec3 white(1.0f);
+  const Case cases[] = {
+      {"diffuse (Lambert)", with_closures({closure(ClosureKind::Diffuse, 1, white, 0.0f)}), 0.99, 1.01, true},
+      {"diffuse (Oren-Nayar r=1)", with_closures({closure(ClosureKind::Diffuse, 1, white, 1.0f)}), 0.70, 1.01, true},
+      {"glossy r=0.2", with_closures({closure(ClosureKind::Glossy, 1, white, 0.2f)}), 0.90, 1.01, true},
+      {"glossy r=0.6", with_closures({closure(ClosureKind::Glossy, 1, white, 0.6f)}), 0.60, 1.01, true},
+      {"glossy r=1", with_closures({closure(ClosureKind::Glossy, 1, white, 1.0f)}), 0.25, 1.01, true},
+      {"glossy r=0 (mirror)", with_closures({closure(ClosureKind::Glossy, 1, white, 0.0f)}), 0.999, 1.001, false},
+      {"glass r=0 ior 1.5", with_closures({closure(ClosureKind::Glass, 1, white, 0.0f, 1.5f)}), 0.999, 1.001, false},
+      {"glass r=0.4 ior 1.5", with_closures({closure(ClosureKind::Glass, 1, white, 0.4f, 1.5f)}), 0.80, 1.01, true},
+      {"transparent", with_closures({closure(ClosureKind::Transparent, 1, white)}), 0.999, 1.001, false},
+      {"mix diffuse 0.7 + glossy 0.3",
+       with_closures({closure(ClosureKind::Diffuse, 0.7f, white, 0.0f), closure(ClosureKind::Glossy, 0.3f, white, 0.3f)}),
+       0.95, 1.01, true},
+      {"mix diffuse 0.5 + transparent 0.5",
+       with_closures({closure(ClosureKind::Diffuse, 0.5f, white, 0.0f), closure(ClosureKind::Transparent, 0.5f, white)}),
+       0.99, 1.01, false},
+      {"principled + glass + glossy (1/3 each)",
+       with_closures({closure(ClosureKind::Principled, 1 / 3.0f, white, 0.3f),
+                      closure(ClosureKind::Glass, 1 / 3.0f, white, 0.3f, 1.33f),
+                      closure(ClosureKind::Glossy, 1 / 3.0f, white, 0.7f)}),
+       0.5, 1.05, true},
+  };
+  for (const Case& c : cases) {
+    const Albedo a = albedo(c.m, kWo);
+    std::printf("%-40s albedo sampled %.4f uniform %.4f (delta %.4f), pdf integral %.4f\n", c.name, a.sampled,
+                a.uniform, a.delta, a.pdf_integral);
+    EXPECT_GE(a.sampled, c.lo) << c.name;
+    EXPECT_LE(a.sampled, c.hi) << c.name;
+    EXPECT_LE(a.pdf_integral, 1.01) << c.name;
+    // Smooth lobes: both estimates of the same integral agree (the uniform
+    // one sees no delta lobe, so compare it with the sampled smooth part).
+    EXPECT_NEAR(a.sampled - a.delta, a.uniform, 0.01) << c.name;
+    if (c.smooth) EXPECT_GT(a.uniform, 0.3) << c.name;
+  }
+}
+
+// Lambert, Oren-Nayar and GGX reflection are reciprocal: f(wo, wi) = f(wi, wo).
+TEST(Materials, ReflectionClosuresAreReciprocal) {
+  const Material ms[] = {
+      with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.8f, 0.5f, 0.2f), 0.0f)}),
+      with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.8f), 0.7f)}),
+      with_closures({closure(ClosureKind::Glossy, 1, vec3(0.9f, 0.7f, 0.5f), 0.35f)}),
+      with_closures({closure(ClosureKind::Diffuse, 0.6f, vec3(0.8f), 0.3f), closure(ClosureKind::Glossy, 0.4f, vec3(1.0f), 0.5f)}),
+  };
+  std::mt19937 rng(3);
+  const vec3 n(0, 0, 1);
+  for (const Material& m : ms) {
+    for (int i = 0; i < 2000; ++i) {
+      vec3 a = random_dir(rng), b = random_dir(rng);
+      a.z = std::abs(a.z) + 0.05f, b.z = std::abs(b.z) + 0.05f;
+      a = glm::normalize(a), b = glm::normalize(b);
+      const vec3 fab = BSDF(n, n, m, false, a).f(b), fba = BSDF(n, n, m, false, b).f(a);
+      for (int k = 0; k < 3; ++k) ASSERT_NEAR(fab[k], fba[k], 1e-4f * std::max(1.0f, fab[k])) << i;
+    }
+  }
+}
+
+// Mix and Add Shader are sums: f is linear in the closure weights, and a
+// Principled BSDF split into two closures of the same parameters is the same BSDF.
+TEST(Materials, ClosureWeightsAreLinear) {
+  std::mt19937 rng(5);
+  const vec3 n(0, 0, 1);
+  const Closure d = closure(ClosureKind::Diffuse, 1, vec3(0.8f, 0.3f, 0.1f), 0.4f);
+  const Closure g = closure(ClosureKind::Glossy, 1, vec3(0.9f), 0.3f);
+  Closure dm = d, gm = g;
+  dm.weight = 0.7f, gm.weight = 0.3f;
+  const Material mix = with_closures({dm, gm}), only_d = with_closures({d}), only_g = with_closures({g});
+  Closure p = closure(ClosureKind::Principled, 1, vec3(0.6f, 0.5f, 0.4f), 0.35f);
+  p.transmission = 0.4f;
+  Closure p1 = p, p2 = p;
+  p1.weight = 0.25f, p2.weight = 0.75f;
+  const Material whole = with_closures({p}), split = with_closures({p1, p2});
+  for (int i = 0; i < 2000; ++i) {
+    vec3 wo = random_dir(rng);
+    wo.z = std::abs(wo.z) + 0.05f;
+    wo = glm::normalize(wo);
+    const vec3 wi = random_dir(rng);
+    const vec3 expect = 0.7f * BSDF(n, n, only_d, false, wo).f(wi) + 0.3f * BSDF(n, n, only_g, false, wo).f(wi);
+    const vec3 got = BSDF(n, n, mix, false, wo).f(wi);
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(got[k], expect[k], 1e-5f + 1e-5f * expect[k]);
+    const BSDF a(n, n, whole, false, wo), b(n, n, split, false, wo);
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(a.f(wi)[k], b.f(wi)[k], 1e-5f + 1e-5f * a.f(wi)[k]);
+    ASSERT_NEAR(a.pdf(wi), b.pdf(wi), 1e-5f + 1e-5f * a.pdf(wi));
+  }
+}
+
+// Principled Alpha a: a white transparent closure of weight 1 - a, the rest
+// scaled by a (Cycles). Transparent samples continue exactly along -wo.
+TEST(Materials, AlphaIsATransparentClosure) {
+  Material m;
+  m.base_color = vec3(0.7f, 0.5f, 0.3f);
+  m.roughness = 0.4f;
+  Material cut = m;
+  cut.alpha = 0.3f;
+  EXPECT_FALSE(m.may_be_transparent());
+  EXPECT_TRUE(cut.may_be_transparent());
+  EXPECT_NEAR(cut.transparency().x, 0.7f, 1e-6f);
+  const vec3 n(0, 0, 1);
+  const BSDF opaque(n, n, m, false, kWo), see_through(n, n, cut, false, kWo);
+  std::mt19937 rng(9);
+  for (int i = 0; i < 200; ++i) {
+    vec3 wi = random_dir(rng);
+    wi.z = std::abs(wi.z);
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(see_through.f(wi)[k], 0.3f * opaque.f(wi)[k], 1e-6f + 1e-5f * opaque.f(wi)[k]);
+  }
+  // Expected throughput of the transparent samples is 1 - alpha.
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  double through = 0;
+  const int n_samples = 200000;
+  for (int i = 0; i < n_samples; ++i) {
+    BSDFSample s;
+    if (!see_through.sample_f(u(rng), vec2(u(rng), u(rng)), s) || s.kind != BSDFSample::kTransparent) continue;
+    ASSERT_EQ(s.wi, -kWo);
+    ASSERT_TRUE(s.delta);
+    through += luminance(s.f) * std::abs(s.wi.z) / s.pdf;
+  }
+  EXPECT_NEAR(through / n_samples, 0.7, 0.01);
+}
+
+// ------------------------------------------------------------------ integrator
+
+namespace {
+std::vector<float> render(const Scene& s, RenderOptions opt) {
+  RenderSession session(s, opt);
+  session.render();
+  return session.pixels();
+}
+vec3 mean_rgb(const std::vector<float>& px) {
+  double r = 0, g = 0, b = 0;
+  for (size_t i = 0; i < px.size(); i += 4) r += px[i], g += px[i + 1], b += px[i + 2];
+  const double n = double(px.size() / 4);
+  return vec3(float(r / n), float(g / n), float(b / n));
+}
+// An orthographic camera at height h looking down -z onto [-e,e]^2.
+void look_down(Scene& s, float h, float e, int size = 16) {
+  Camera& c = s.camera;
+  c.type = Camera::Type::Orthographic;
+  c.to_world = glm::translate(mat4(1.0f), vec3(0, 0, h));
+  c.left = c.bottom = -e;
+  c.right = c.top = e;
+  c.clip_start = 0.01f;
+  c.clip_end = 100.0f;
+  c.width = c.height = size;
+}
+uint32_t add_material(Scene& s, const Material& m) {
+  s.materials.push_back(m);
+  return uint32_t(s.materials.size() - 1);
+}
+void add_square(Scene& s, float z, float half, uint32_t material) {
+  fixtures::add_quad(s, {-half, -half, z}, {half, -half, z}, {half, half, z}, {-half, half, z}, material);
+}
+}  // namespace
+
+// Camera -> transparent plane -> world: every sample is the world times the
+// plane's colour (one delta lobe, nothing random).
+TEST(Materials, TransparentPlaneTintsWhatIsBehind) {
+  Scene s;
+  add_square(s, 0.0f, 5.0f, add_material(s, with_closures({closure(ClosureKind::Transparent, 1, vec3(0.5f, 0.25f, 1.0f))})));
+  s.background.set_color(vec3(0.8f, 0.6f, 0.4f));
+  look_down(s, 2.0f, 1.0f);
+  s.commit();
+  EXPECT_TRUE(scene_features(s).transparent);
+  RenderOptions opt;
+  opt.samples = 4;
+  const vec3 m = mean_rgb(render(s, opt));
+  EXPECT_NEAR(m.x, 0.4f, 1e-5f);
+  EXPECT_NEAR(m.y, 0.15f, 1e-5f);
+  EXPECT_NEAR(m.z, 0.4f, 1e-5f);
+}
+
+// Principled Alpha over the world: a black surface with alpha a shows (1 - a)
+// of the world; a Lambert surface of albedo 0.5 with alpha 0.5 under a
+// uniform world shows 0.5 (1 - a) + 0.5 a of it.
+TEST(Materials, AlphaShowsTheWorldThroughTheSurface) {
+  for (int variant = 0; variant < 2; ++variant) {
+    Scene s;
+    Material m;
+    if (variant == 0) {
+      m.base_color = vec3(0.0f);
+      m.specular = 0.0f;
+      m.alpha = 0.3f;
+    } else {
+      m = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+      m.alpha = 0.5f;
+    }
+    add_square(s, 0.0f, 50.0f, add_material(s, m));
+    s.background.set_color(vec3(1.0f, 0.5f, 0.25f));
+    look_down(s, 2.0f, 1.0f);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = variant == 0 ? 4 : 256;
+    const vec3 got = mean_rgb(render(s, opt));
+    const float expect = variant == 0 ? 0.7f : 0.75f;
+    std::printf("alpha variant %d: %.4f %.4f %.4f (expected %.4f x world)\n", variant, got.x, got.y, got.z, expect);
+    EXPECT_NEAR(got.x, expect * 1.0f, variant == 0 ? 1e-5f : 0.01f);
+    EXPECT_NEAR(got.y, expect * 0.5f, variant == 0 ? 1e-5f : 0.005f);
+    EXPECT_NEAR(got.z, expect * 0.25f, variant == 0 ? 1e-5f : 0.003f);
+  }
+}
+
+// Transparent bounces are counted apart and limited as in Cycles: after the
+// last allowed one, the next surface ends the path (here: no emission, black).
+TEST(Materials, TransparentBounceLimit) {
+  Scene s;
+  const uint32_t glass = add_material(s, with_closures({closure(ClosureKind::Transparent, 1, vec3(1.0f))}));
+  for (int i = 0; i < 10; ++i) add_square(s, -0.1f * float(i), 5.0f, glass);
+  s.background.set_color(vec3(1.0f));
+  look_down(s, 2.0f, 1.0f, 8);
+  s.commit();
+  RenderOptions opt;
+  opt.samples = 2;
+  opt.max_bounces = 0;  // transparent bounces are not bounces
+  for (int limit : {8, 9, 10, 12}) {
+    opt.max_transparent_bounces = limit;
+    const float v = mean_rgb(render(s, opt)).x;
+    EXPECT_FLOAT_EQ(v, limit >= 10 ? 1.0f : 0.0f) << limit;
+  }
+}
+
+// Transparent shadows: a sun over a white floor, seen from below a cover of
+// alpha 0.4 (transparent weight 0.6): direct light only, the floor gets
+// exactly 0.6 of the open floor's light. An opaque cover leaves it black,
+// with occlusion rays (no transparent material in the scene) and with
+// transparent shadow rays (another material is transparent).
+TEST(Materials, ShadowRaysPassTransparentSurfaces) {
+  auto floor_radiance = [](int cover) {
+    Scene s;
+    const uint32_t white = add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.8f), 0.0f)}));
+    add_square(s, 0.0f, 50.0f, white);
+    if (cover) {
+      Material m;
+      m.base_color = vec3(0.0f);
+      m.specular = 0.0f;
+      m.alpha = cover == 1 ? 0.4f : 1.0f;
+      add_square(s, 1.0f, 50.0f, add_material(s, m));
+    }
+    if (cover == 3) {  // a transparent material elsewhere, out of the way
+      Material t = with_closures({closure(ClosureKind::Transparent, 1, vec3(1.0f))});
+      fixtures::add_quad(s, {100, 100, 0}, {101, 100, 0}, {101, 101, 0}, {100, 101, 0}, add_material(s, t));
+    }
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.direction = glm::normalize(vec3(0.2f, 0.1f, -1.0f));
+    sun.radiance = vec3(3.0f);
+    s.lights.push_back(sun);
+    look_down(s, 0.5f, 1.0f, 8);
+    s.commit();
+    EXPECT_EQ(scene_features(s).transparent, cover == 1 || cover == 3);
+    RenderOptions opt;
+    opt.samples = 16;
+    opt.max_bounces = 0;
+    return mean_rgb(render(s, opt)).x;
+  };
+  const float open = floor_radiance(0), through = floor_radiance(1);
+  const float blocked = floor_radiance(2), blocked_transparent_path = floor_radiance(3);
+  std::printf("floor: open %.5f, under alpha 0.4 %.5f (ratio %.5f), under opaque %.5f / %.5f\n", open, through,
+              through / open, blocked, blocked_transparent_path);
+  EXPECT_GT(open, 0.1f);
+  EXPECT_NEAR(through / open, 0.6f, 1e-4f);
+  EXPECT_EQ(blocked, 0.0f);
+  EXPECT_EQ(blocked_transparent_path, 0.0f);
+}
+
+// MIS across transparent surfaces: a rough floor lit by a large emissive
+// quad through a surface of alpha 0.5 that the camera does not see. The
+// light reaching the floor is exactly halved, by light sampling and by BSDF
+// sampling alike, only if the emitter's density for MIS is taken from the
+// floor point (Cycles' mis_ray_t), not from the transparent surface.
+TEST(Materials, EmittersBehindTransparentSurfacesKeepMisWeights) {
+  auto floor_radiance = [](bool cover) {
+    Scene s;
+    const uint32_t floor = add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.8f), 0.0f)}));
+    add_square(s, 0.0f, 50.0f, floor);
+    Material lamp;
+    lamp.base_color = vec3(0.0f);
+    lamp.specular = 0.0f;
+    lamp.emission_front = lamp.emission_back = vec3(1.0f);
+    const uint32_t l = add_material(s, lamp);
+    fixtures::add_quad(s, {-20, -20, 3}, {-20, 20, 3}, {20, 20, 3}, {20, -20, 3}, l);  // faces down
+    if (cover) {
+      Material m;
+      m.base_color = vec3(0.0f);
+      m.specular = 0.0f;
+      m.alpha = 0.5f;
+      const uint32_t c = add_material(s, m);
+      fixtures::add_quad(s, {-20, -20, 1.5f}, {-20, 20, 1.5f}, {20, 20, 1.5f}, {20, -20, 1.5f}, c);
+    }
+    look_down(s, 1.0f, 0.5f, 8);  // below the cover
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 1024;
+    opt.max_bounces = 0;
+    return mean_rgb(render(s, opt)).x;
+  };
+  const float open = floor_radiance(false), covered = floor_radiance(true);
+  std::printf("floor under a lamp: open %.5f, through alpha 0.5 %.5f (ratio %.5f)\n", open, covered, covered / open);
+  EXPECT_NEAR(covered / open, 0.5f, 0.005f);
+}
+
+TEST(Materials, OpaqueScenesKeepOcclusionShadowRays) {
+  Scene s;
+  fixtures::build_cornell_box(s, 8, 8);
+  EXPECT_FALSE(scene_features(s).transparent);
+}
+
+// ------------------------------------------------------------------ depth of field
+
+// Every ray of a film point passes through the point the pinhole ray meets
+// on the plane in focus, and starts within the aperture.
+TEST(Materials, ThinLensRaysMeetOnThePlaneInFocus) {
+  for (Camera::Type type : {Camera::Type::Perspective, Camera::Type::Orthographic}) {
+    Camera c;
+    c.type = type;
+    c.to_world = glm::rotate(glm::translate(mat4(1.0f), vec3(1, 2, 3)), 0.4f, glm::normalize(vec3(1, 1, 0)));
+    c.width = c.height = 100;
+    c.clip_start = 0.0f;
+    const Ray pin = c.generate_ray(vec2(31.0f, 77.0f));
+    c.aperture_radius = 0.2f;
+    c.focus_distance = 4.0f;
+    c.blades = 5;
+    c.blades_rotation = 0.3f;
+    const vec3 axis = glm::normalize(vec3(c.to_world * vec4(0, 0, -1, 0)));
+    const vec3 eye(c.to_world[3]);
+    const float t_pin = (4.0f - glm::dot(pin.o - eye, axis)) / glm::dot(pin.d, axis);
+    const vec3 focus = pin.o + pin.d * t_pin;
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    float spread = 0.0f;
+    for (int i = 0; i < 1000; ++i) {
+      const Ray r = c.generate_ray(vec2(31.0f, 77.0f), vec2(u(rng), u(rng)));
+      const float t = (4.0f - glm::dot(r.o - eye, axis)) / glm::dot(r.d, axis);
+      ASSERT_LT(glm::length(r.o + r.d * t - focus), 1e-4f);
+      ASSERT_LE(glm::length(r.o - pin.o), 0.2f + 1e-5f);
+      spread = std::max(spread, glm::length(r.o - pin.o));
+    }
+    EXPECT_GT(spread, 0.15f);  // the aperture is used
+  }
+}
+
+// Blades: a uniform point in the regular polygon inscribed in the aperture
+// circle, corners at rotation + (2k + 1) pi / n; the aperture ratio narrows x.
+TEST(Materials, ApertureBladesSampleARegularPolygon) {
+  Camera c;
+  c.blades = 6;
+  c.blades_rotation = 0.25f;
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const int n = 200000;
+  const float apothem = std::cos(kPi / 6);
+  double r2 = 0, mx = 0, my = 0;
+  float far = 0.0f, far_angle = 0.0f;
+  for (int i = 0; i < n; ++i) {
+    const vec2 p = c.sample_aperture(vec2(u(rng), u(rng)));
+    const float r = glm::length(p);
+    ASSERT_LE(r, 1.0f + 1e-5f);
+    // Inside every edge: the distance along each edge normal is at most the apothem.
+    for (int k = 0; k < 6; ++k) {
+      const float a = c.blades_rotation + 2.0f * kPi * k / 6;
+      ASSERT_LE(p.x * std::cos(a) + p.y * std::sin(a), apothem + 1e-5f);
+    }
+    r2 += double(r) * r, mx += p.x, my += p.y;
+    if (r > far) far = r, far_angle = std::atan2(p.y, p.x);
+  }
+  // Uniform over a regular hexagon of circumradius 1: E[r^2] = 5/12.
+  EXPECT_NEAR(r2 / n, 5.0 / 12.0, 0.005);
+  EXPECT_NEAR(mx / n, 0.0, 0.005);
+  EXPECT_NEAR(my / n, 0.0, 0.005);
+  // The farthest points are corners.
+  const float corner = std::remainder(far_angle - c.blades_rotation - kPi / 6, 2.0f * kPi / 6);
+  EXPECT_NEAR(corner, 0.0f, 0.02f);
+  // Anamorphic ratio 2: half as wide.
+  c.blades = 0;
+  c.aperture_ratio = 2.0f;
+  float max_x = 0, max_y = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const vec2 p = c.sample_aperture(vec2(u(rng), u(rng)));
+    max_x = std::max(max_x, std::abs(p.x)), max_y = std::max(max_y, std::abs(p.y));
+  }
+  EXPECT_NEAR(max_x, 0.5f, 0.01f);
+  EXPECT_NEAR(max_y, 1.0f, 0.01f);
+}
+
+// Depth of field keeps images independent of the thread count and tiles.
+TEST(Materials, DepthOfFieldIsDeterministic) {
+  Scene s;
+  fixtures::build_cornell_box(s, 24, 16, mat4(1.0f), 1.0f, false);
+  s.camera.aperture_radius = 0.1f;
+  s.camera.focus_distance = 3.0f;
+  s.camera.blades = 5;
+  s.commit();
+  RenderOptions opt;
+  opt.samples = 8;
+  opt.threads = 1;
+  const std::vector<float> one = render(s, opt);
+  opt.threads = 0;
+  opt.tile_size = 3;
+  const std::vector<float> all = render(s, opt);
+  ASSERT_EQ(one.size(), all.size());
+  EXPECT_EQ(0, std::memcmp(one.data(), all.data(), one.size() * sizeof(float)));
+}
