@@ -186,8 +186,6 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     BSDFSample bs;
     const float u_lobe = sampler.get_1d();
     if (!bsdf.sample_f(u_lobe, sampler.get_2d(), bs)) break;
-    beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
-    prev_bsdf_pdf = bs.pdf;
     if (bs.kind == BSDFSample::kTransparent) {
       // Straight on through the surface: not a bounce, and the MIS state of
       // the last scattering vertex is kept (Cycles' path_state_next for
@@ -203,10 +201,12 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       if (!std::isinf(ray.tmax)) ray.tmax = std::max(ray.tmax - hit.t, 0.0f);
       continue;
     }
+    beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+    prev_bsdf_pdf = bs.pdf;
     count_emission_fully = bs.delta;
+    mis_t = 0.0f;
     ++kind_bounces[bs.kind];
     // The next vertex would only add emission and stop: with nothing a ray
-    mis_t = 0.0f;
     // can hit that emits, skip it (same image, one ray fewer per path).
     if (!features.hittable_emitters &&
         (bounce + 1 > options.max_bounces || kind_bounces[bs.kind] > kind_limit[bs.kind])) {
@@ -225,9 +225,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       if (u_rr < q) break;
       beta /= 1.0f - q;
     }
+    ++bounce;
   }
   if (!is_finite(L)) {
-    ++bounce;
     ++counters.invalid_samples;
     return vec3(0.0f);
   }

@@ -23,7 +23,6 @@ struct SceneFeatures {
   // ray after a path's last bounce would only look for emission and is not
   // traced.
   bool hittable_emitters = true;
-};
   // Whether any material lets rays through (Transparent BSDF, Principled
   // Alpha): shadow rays then pass such surfaces, attenuated (Cycles'
   // transparent shadows). Without any, shadow rays stay any-hit occlusion tests.

@@ -167,6 +167,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("max_diffuse_bounces", &RenderOptions::max_diffuse_bounces)
       .def_readwrite("max_glossy_bounces", &RenderOptions::max_glossy_bounces)
       .def_readwrite("max_transmission_bounces", &RenderOptions::max_transmission_bounces)
+      .def_readwrite("max_transparent_bounces", &RenderOptions::max_transparent_bounces)
       .def_readwrite("rr_depth", &RenderOptions::rr_depth)
       .def_readwrite("clamp_direct", &RenderOptions::clamp_direct)
       .def_readwrite("clamp_indirect", &RenderOptions::clamp_indirect)
@@ -187,7 +188,6 @@ PYBIND11_MODULE(_core, m) {
   py::class_<Scene, std::shared_ptr<Scene>>(m, "Scene")
       .def(py::init<>())
       .def(
-      .def_readwrite("max_transparent_bounces", &RenderOptions::max_transparent_bounces)
           "add_mesh",
           [](Scene& s, const Array<float>& positions, const Array<uint32_t>& indices, std::optional<Array<uint32_t>> slots,
              std::optional<Array<float>> normals, std::optional<Array<float>> uvs) {
@@ -261,6 +261,12 @@ PYBIND11_MODULE(_core, m) {
              py::dict textures, float normal_strength, float emission_strength_front, float emission_strength_back,
              const std::string& kind, float weight, float alpha, std::vector<py::dict> closures) {
             Material m;
+            m.kind = to_closure_kind(kind);
+            m.weight = weight;
+            m.alpha = alpha;
+            if (closures.size() > size_t(kMaxClosures - 1))
+              throw std::invalid_argument("add_material: at most " + std::to_string(kMaxClosures) + " closures in all");
+            for (const py::dict& d : closures) m.add_closure(to_closure(d));
             m.base_color = to_vec3(base_color, "base_color");
             m.metallic = metallic;
             m.roughness = roughness;
@@ -281,15 +287,10 @@ PYBIND11_MODULE(_core, m) {
               TextureRef r{ref.first, uint32_t(ref.second)};
               if (key == "base_color") m.base_color_tex = r;
               else if (key == "metallic") m.metallic_tex = r;
-            m.kind = to_closure_kind(kind);
-            m.weight = weight;
-            m.alpha = alpha;
-            if (closures.size() > size_t(kMaxClosures - 1))
-              throw std::invalid_argument("add_material: at most " + std::to_string(kMaxClosures) + " closures in all");
-            for (const py::dict& d : closures) m.add_closure(to_closure(d));
               else if (key == "roughness") m.roughness_tex = r;
               else if (key == "emission") m.emission_tex = r;
               else if (key == "normal") m.normal_tex = r;
+              else if (key == "alpha") m.alpha_tex = r;
               else throw std::invalid_argument("add_material: unknown textured input '" + key + "'");
             }
             s.materials.push_back(m);
@@ -315,7 +316,6 @@ PYBIND11_MODULE(_core, m) {
             else if (type == "SPOT") l.type = LightType::Spot;
             else if (type == "SUN") l.type = LightType::Sun;
             else if (type == "AREA") l.type = LightType::Area;
-              else if (key == "alpha") m.alpha_tex = r;
             else throw std::invalid_argument("unknown light type '" + type + "'; expected POINT, SPOT, SUN or AREA");
             l.position = to_vec3(position, "position");
             l.direction = glm::normalize(to_vec3(direction, "direction"));
@@ -365,6 +365,11 @@ PYBIND11_MODULE(_core, m) {
             c.left = left, c.right = right, c.bottom = bottom, c.top = top;
             c.clip_start = clip_start, c.clip_end = clip_end;
             c.width = width, c.height = height;
+            c.aperture_radius = std::max(aperture_radius, 0.0f);
+            c.focus_distance = focus_distance;
+            c.blades = blades;
+            c.blades_rotation = blades_rotation;
+            c.aperture_ratio = aperture_ratio > 0.0f ? aperture_ratio : 1.0f;
           },
           py::arg("type"), py::arg("matrix"), py::arg("left"), py::arg("right"), py::arg("bottom"), py::arg("top"),
           py::arg("clip_start"), py::arg("clip_end"), py::arg("width"), py::arg("height"),
@@ -387,11 +392,6 @@ PYBIND11_MODULE(_core, m) {
             SurfaceInteraction si = s.interaction(r, h);
             const glm::dvec3 p = glm::dvec3(si.p) + glm::dvec3(s.render_origin);
             return py::make_tuple(h.t, h.instance, s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim],
-            c.aperture_radius = std::max(aperture_radius, 0.0f);
-            c.focus_distance = focus_distance;
-            c.blades = blades;
-            c.blades_rotation = blades_rotation;
-            c.aperture_ratio = aperture_ratio > 0.0f ? aperture_ratio : 1.0f;
                                   std::vector<double>{p.x, p.y, p.z}, std::vector<float>{si.ng.x, si.ng.y, si.ng.z},
                                   si.back_face);
           },
