@@ -53,6 +53,41 @@ def live_status(session, total):
     return text, progress
 
 
+# The passes besides Combined, as Cycles names and registers them
+# (intern/cycles/blender/addon/engine.py): (core name, name in this Blender,
+# channel ids, type, enabled(view_layer)). Blender 5.0 renamed two of them.
+_BLENDER_5 = bpy.app.version >= (5, 0, 0)
+PASSES = (
+    ("Depth", "Depth", "Z", 'VALUE', lambda vl: vl.use_pass_z),
+    ("Normal", "Normal", "XYZ", 'VECTOR', lambda vl: vl.use_pass_normal),
+    ("Emit", "Emission" if _BLENDER_5 else "Emit", "RGB", 'COLOR', lambda vl: vl.use_pass_emit),
+    ("DiffCol", "Diffuse Color" if _BLENDER_5 else "DiffCol", "RGB", 'COLOR', lambda vl: vl.use_pass_diffuse_color),
+    ("Denoising Normal", "Denoising Normal", "XYZ", 'VECTOR', lambda vl: _denoising_data(vl)),
+    ("Denoising Albedo", "Denoising Albedo", "RGB", 'COLOR', lambda vl: _denoising_data(vl)),
+    ("Denoising Depth", "Denoising Depth", "Z", 'VALUE', lambda vl: _denoising_data(vl)),
+)
+# Blender's pass name -> the core's.
+CORE_PASS = {blender: core_name for core_name, blender, _, _, _ in PASSES}
+
+
+def _denoising_data(view_layer):
+    settings = getattr(view_layer, "tessera", None)
+    return bool(settings is not None and settings.denoising_store_passes)
+
+
+def enabled_passes(view_layer):
+    """The core's names of the passes besides Combined that the view layer asks for."""
+    return [core_name for core_name, _, _, _, enabled in PASSES if enabled(view_layer)]
+
+
+def pass_bits(names):
+    """RenderOptions.passes for these passes (core names), decided once per render."""
+    bits = 0
+    for name in names:
+        bits |= core.native.PASSES[name]
+    return bits
+
+
 def render_options(settings, region):
     opt = core.native.RenderOptions()
     opt.samples = settings.samples
@@ -60,6 +95,7 @@ def render_options(settings, region):
     opt.max_diffuse_bounces = settings.max_diffuse_bounces
     opt.max_glossy_bounces = settings.max_glossy_bounces
     opt.max_transmission_bounces = settings.max_transmission_bounces
+    opt.max_transparent_bounces = settings.max_transparent_bounces
     opt.rr_depth = settings.rr_depth
     opt.clamp_direct = settings.clamp_direct
     opt.clamp_indirect = settings.clamp_indirect
@@ -78,9 +114,17 @@ def render_options(settings, region):
 class TesseraRenderEngine(bpy.types.RenderEngine):
     bl_idname = "TESSERA"
     bl_label = "Tessera"
-    bl_use_preview = False
+    bl_use_preview = True
     bl_use_eevee_viewport = True
     bl_use_postprocess = True
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        # Declares the view layer's passes, so that the render result and the
+        # compositor's Render Layers node have them (as Cycles' register_passes).
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", 'COLOR')
+        for _, name, chan_id, kind, enabled in PASSES:
+            if enabled(renderlayer):
+                self.register_pass(scene, renderlayer, name, len(chan_id), chan_id, kind)
 
     def cancel_requested(self):
         """Blender's test_break (Escape, or a closed render window), asked in
@@ -95,7 +139,6 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             self._render(depsgraph)
         except MemoryError:
             import traceback
-    opt.max_transparent_bounces = settings.max_transparent_bounces
             traceback.print_exc()
             self.report({'ERROR'}, "Tessera ran out of memory. Lower the resolution, the number of enabled "
                                    "passes or the scene's size, or close other programs, and render again.")
@@ -134,7 +177,9 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             return  # cancelled during export
 
         settings = scene.tessera
-        session = core.native.Session(scene_core, render_options(settings, region))
+        options = render_options(settings, region)
+        options.passes = pass_bits(enabled_passes(depsgraph.view_layer))
+        session = core.native.Session(scene_core, options)
         x0, y0, x1, y1 = region
         # Blender's render result is the border only, with or without crop (it pastes
         # the border into the full frame itself when not cropping): offset 0, 0.
@@ -161,10 +206,10 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             self.update_progress(progress)
             self.update_stats("", text)
             if done > shown:
-                self._write(layer, session.pixels())
+                self._write(layer, session)
                 self.update_result(result)
                 shown = done
-        self._write(layer, session.pixels())
+        self._write(layer, session)
         self.end_result(result)
         rs = session.stats()
         rays_per_s = rs["rays"] / max(rs["seconds"], 1e-9)
@@ -191,9 +236,21 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                                  warnings=list(report.warnings))
 
     @staticmethod
-    def _write(layer, pixels):
-        # One bulk write of every pass of the layer (only Combined for now).
-        layer.passes.foreach_set("rect", np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+    def _write(layer, session):
+        # One bulk write of every pass of the layer, in the layer's order; a
+        # pass the core does not make (none so far) stays black.
+        combined = session.pixels()
+        num_pixels = combined.shape[0] * combined.shape[1]
+        parts = []
+        for render_pass in layer.passes:
+            if render_pass.name == "Combined":
+                parts.append(combined)
+            elif render_pass.name in CORE_PASS:
+                parts.append(session.pass_pixels(CORE_PASS[render_pass.name]))
+            else:
+                parts.append(np.zeros(num_pixels * render_pass.channels, dtype=np.float32))
+        data = np.concatenate([np.ascontiguousarray(p, dtype=np.float32).ravel() for p in parts])
+        layer.passes.foreach_set("rect", data)
 
 
 def register():

@@ -2,7 +2,7 @@
 RenderOptions in engine.py and read where it is used."""
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 # Speed against accuracy, in one choice. Each preset sets these fields; a
 # field changed by hand afterwards keeps its value (the preset shows 'CUSTOM'
@@ -99,6 +99,21 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         default=1.5, min=0.01, max=10.0, subtype='PIXEL')
 
 
+def _update_render_passes(self, context):
+    # The compositor's Render Layers node shows the new set of passes.
+    view_layer = context.view_layer if context else None
+    if view_layer is not None:
+        view_layer.update_render_passes()
+
+
+class TesseraViewLayerSettings(bpy.types.PropertyGroup):
+    """view_layer.tessera: passes that Blender's view layer has no flag for."""
+    denoising_store_passes: BoolProperty(
+        name="Denoising Data", description="Write the Denoising Normal, Albedo and Depth passes (as Cycles "
+        "does), for denoising in the compositor",
+        default=False, update=_update_render_passes)
+
+
 class TESSERA_OT_apply_preset(bpy.types.Operator):
     """Set samples, adaptive sampling, bounces and clamping from a preset"""
     bl_idname = "tessera.apply_preset"
@@ -116,9 +131,13 @@ def register():
     bpy.utils.register_class(TesseraRenderSettings)
     bpy.utils.register_class(TESSERA_OT_apply_preset)
     bpy.types.Scene.tessera = PointerProperty(type=TesseraRenderSettings)
+    bpy.utils.register_class(TesseraViewLayerSettings)
+    bpy.types.ViewLayer.tessera = PointerProperty(type=TesseraViewLayerSettings)
 
 
 def unregister():
+    del bpy.types.ViewLayer.tessera
+    bpy.utils.unregister_class(TesseraViewLayerSettings)
     del bpy.types.Scene.tessera
     bpy.utils.unregister_class(TESSERA_OT_apply_preset)
     bpy.utils.unregister_class(TesseraRenderSettings)

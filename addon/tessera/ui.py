@@ -78,7 +78,34 @@ class TESSERA_PT_performance(TesseraPanel, bpy.types.Panel):
         col.prop(settings, "tile_size")
 
 
-classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance)
+class TESSERA_PT_passes_data(bpy.types.Panel):
+    """View Layer > Passes > Data: the passes Tessera writes besides Combined."""
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "view_layer"
+    bl_label = "Data"
+    bl_parent_id = "VIEWLAYER_PT_layer_passes"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        view_layer = context.view_layer
+        col = layout.column(heading="Include", align=True)
+        col.prop(view_layer, "use_pass_combined")
+        col.prop(view_layer, "use_pass_z")
+        col.prop(view_layer, "use_pass_normal")
+        col.prop(view_layer, "use_pass_diffuse_color", text="Diffuse Color")
+        col.prop(view_layer, "use_pass_emit", text="Emission")
+        col.prop(view_layer.tessera, "denoising_store_passes")
+
+
+classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance, TESSERA_PT_passes_data)
 
 # Blender's own panels that apply to any engine which renders the usual data.
 _BLENDER_PANELS = (

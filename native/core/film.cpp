@@ -1,5 +1,7 @@
 #include "film.h"
 
+#include <type_traits>
+
 namespace tessera {
 
 // Blackman-Harris window over [-width/2, width/2] (Cycles' filter_func_blackman_harris).
@@ -74,6 +76,69 @@ double Film::estimated_relative_error() const {
   }
   if (mean <= 0.0) return 0.0;
   return std::sqrt(var / (3.0 * sum_.size())) / (mean / (3.0 * sum_.size()));
+}
+
+}  // namespace tessera
+
+namespace tessera {
+
+void DataPasses::configure(uint32_t mask, size_t n, const Camera& camera) {
+  mask_ = mask & kPassAllData;
+  auto size = [&](uint32_t pass, auto& buffer) {
+    using T = typename std::decay_t<decltype(buffer)>::value_type;
+    buffer.assign((mask_ & pass) ? n : 0, T(0.0f));
+  };
+  size(kPassDepth, depth_);
+  size(kPassDenoisingDepth, denoising_depth_);
+  size(kPassNormal, normal_);
+  size(kPassDiffuseColor, diffuse_color_);
+  size(kPassEmission, emission_);
+  size(kPassDenoisingNormal, denoising_normal_);
+  size(kPassDenoisingAlbedo, denoising_albedo_);
+  // Camera space as Cycles' (x right, y up, z forward): Blender's camera
+  // looks down its -z.
+  camera_origin_ = vec3(camera.to_world[3]);
+  camera_x_ = glm::normalize(vec3(camera.to_world[0]));
+  camera_y_ = glm::normalize(vec3(camera.to_world[1]));
+  camera_forward_ = -glm::normalize(vec3(camera.to_world[2]));
+}
+
+void DataPasses::add(size_t i, const FirstHit& h) {
+  if (h.hit) {
+    // Cycles' camera_z_depth: the hit's z in camera space.
+    if (mask_ & kPassDepth) depth_[i] += glm::dot(h.position - camera_origin_, camera_forward_);
+    if (mask_ & kPassNormal) normal_[i] += h.normal;
+    if (mask_ & kPassDiffuseColor) diffuse_color_[i] += h.diffuse_color;
+    if (mask_ & kPassEmission) emission_[i] += h.emission;
+  }
+  // Denoising features: the normal and depth where the feature vertex was
+  // found, the albedo also from emission and world seen before it.
+  const vec3 n = h.denoising_normal;
+  if (mask_ & kPassDenoisingNormal)
+    denoising_normal_[i] += vec3(glm::dot(n, camera_x_), glm::dot(n, camera_y_), glm::dot(n, camera_forward_));
+  if (mask_ & kPassDenoisingAlbedo) denoising_albedo_[i] += h.denoising_albedo;
+  if (mask_ & kPassDenoisingDepth) denoising_depth_[i] += h.denoising_depth;
+}
+
+void DataPasses::resolve(size_t i, int n, uint32_t pass, float* out) const {
+  const float scale = n > 0 ? 1.0f / float(n) : 0.0f;
+  auto put3 = [&](const std::vector<vec3>& b) {
+    const vec3 v = b[i] * scale;
+    out[0] = v.x, out[1] = v.y, out[2] = v.z;
+  };
+  switch (pass) {
+    case kPassDepth:
+      // Cycles' film_get_pass_pixel_depth: 1e10 where no sample hit anything.
+      out[0] = depth_[i] == 0.0f ? 1e10f : depth_[i] * scale;
+      break;
+    case kPassDenoisingDepth: out[0] = denoising_depth_[i] * scale; break;
+    case kPassNormal: put3(normal_); break;
+    case kPassDiffuseColor: put3(diffuse_color_); break;
+    case kPassEmission: put3(emission_); break;
+    case kPassDenoisingNormal: put3(denoising_normal_); break;
+    case kPassDenoisingAlbedo: put3(denoising_albedo_); break;
+    default: break;
+  }
 }
 
 }  // namespace tessera

@@ -4,6 +4,7 @@
 #pragma once
 #include <vector>
 #include "math.h"
+#include "passes.h"
 
 namespace tessera {
 
@@ -57,6 +58,31 @@ class Film {
   std::vector<vec3> sum_, sum_odd_;
   std::vector<int> count_;
   std::vector<uint8_t> active_;
+};
+
+}  // namespace tessera
+
+namespace tessera {
+
+// Per-pixel sums of the enabled data passes (passes.h), one buffer per pass,
+// none allocated for a pass that is off. Written like Film: a pixel only by
+// the tile that owns it.
+class DataPasses {
+ public:
+  // Allocates the buffers of the passes in mask for num_pixels pixels.
+  void configure(uint32_t mask, size_t num_pixels, const Camera& camera);
+  uint32_t mask() const { return mask_; }
+
+  // Adds one sample's record; a sample that hit nothing adds nothing.
+  void add(size_t i, const FirstHit& h);
+  // The pass's value at pixel i over n samples: pass_channels(pass) floats.
+  void resolve(size_t i, int n, uint32_t pass, float* out) const;
+
+ private:
+  uint32_t mask_ = 0;
+  vec3 camera_origin_{0.0f}, camera_x_{1, 0, 0}, camera_y_{0, 1, 0}, camera_forward_{0, 0, -1};
+  std::vector<float> depth_, denoising_depth_;
+  std::vector<vec3> normal_, diffuse_color_, emission_, denoising_normal_, denoising_albedo_;
 };
 
 }  // namespace tessera

@@ -25,6 +25,9 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   tiles_y_ = (height() + options_.tile_size - 1) / options_.tile_size;
   film_.resize(size_t(width()) * height());
   display_.assign(size_t(width()) * height() * 4, 0.0f);
+  data_passes_.configure(options.passes, film_.size(), scene.camera);
+  for (int b = 0; b < kNumDataPasses; ++b)
+    if (data_passes_.mask() & (1u << b)) pass_display_[b].assign(film_.size() * pass_channels(1u << b), 0.0f);
 }
 
 void RenderSession::render_tile(int tile, int sample_begin, int sample_end, PathCounters& counters) {
@@ -49,7 +52,13 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
         // The aperture sample is drawn only with depth of field (pinhole images stay as they were).
         const vec2 u_lens = scene_.camera.has_lens() ? sampler.get_2d() : vec2(0.5f);
         Ray ray = scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
-        film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
+        if (!data_passes_.mask()) {
+          film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
+        } else {
+          FirstHit first(data_passes_.mask());
+          film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_, &first));
+          data_passes_.add(i, first);
+        }
       }
       film_.set_count(i, sample_end);
     }
@@ -100,8 +109,9 @@ void RenderSession::render() {
   // fewer display updates. Without a time limit the pass boundaries depend
   // only on the settings, never on threads or timing.
   int pass = 1;
-  if (!features_.emits) {
-    // Nothing emits: the image is black, no path needs tracing.
+  if (!features_.emits && !data_passes_.mask()) {
+    // Nothing emits: the image is black, no path needs tracing (unless
+    // passes want what the camera sees).
     done = total;
     std::lock_guard<std::mutex> lock(display_mutex_);
     for (size_t i = 0; i < num_pixels; ++i) display_[4 * i + 3] = 1.0f;
@@ -189,6 +199,12 @@ void RenderSession::render() {
         display_[4 * i + 2] = m.z;
         display_[4 * i + 3] = 1.0f;
       }
+      for (int b = 0; b < kNumDataPasses; ++b) {
+        if (pass_display_[b].empty()) continue;
+        const uint32_t bit = 1u << b;
+        const int nc = pass_channels(bit);
+        for (size_t i = 0; i < num_pixels; ++i) data_passes_.resolve(i, film_.count(i), bit, &pass_display_[b][nc * i]);
+      }
     }
     PathCounters all;
     for (const PathCounters& c : counters) all.rays += c.rays;
@@ -232,6 +248,15 @@ void RenderSession::render() {
 std::vector<float> RenderSession::pixels() const {
   std::lock_guard<std::mutex> lock(display_mutex_);
   return display_;
+}
+
+std::vector<float> RenderSession::pass_pixels(uint32_t pass) const {
+  for (int b = 0; b < kNumDataPasses; ++b)
+    if (pass == (1u << b)) {
+      std::lock_guard<std::mutex> lock(display_mutex_);
+      return pass_display_[b];
+    }
+  return {};
 }
 
 RenderStats RenderSession::stats() const {

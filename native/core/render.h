@@ -54,6 +54,9 @@ class RenderSession {
   double progress() const;
   // RGBA of the region, rows bottom to top, as of the last finished pass.
   std::vector<float> pixels() const;
+  // One enabled data pass (PassBits), pass_channels(pass) floats per pixel,
+  // rows bottom to top, as of the last finished pass; empty if not enabled.
+  std::vector<float> pass_pixels(uint32_t pass) const;
   RenderStats stats() const;
 
  private:
@@ -68,9 +71,11 @@ class RenderSession {
   int x0_, y0_, x1_, y1_;
   int tiles_x_, tiles_y_;
   Film film_;
+  DataPasses data_passes_;  // the enabled passes besides Combined (none: nothing recorded)
 
   mutable std::mutex display_mutex_;
   std::vector<float> display_;  // RGBA means after the last pass
+  std::vector<float> pass_display_[kNumDataPasses];  // per PassBits bit: the enabled passes after the last pass
   std::atomic<bool> cancel_{false};
   std::atomic<int> samples_done_{0};
   std::atomic<double> estimated_error_{0.0};
