@@ -170,7 +170,9 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             return
         if scene_core is not None and stats["triangles"] == 0:
             report.warnings.append("Tessera: the scene has no visible geometry; only the world is rendered.")
-        for message in report.warnings:
+        # A material preview renders Blender's own preview scene (whose floor
+        # uses nodes Tessera does not evaluate): its warnings are not the user's.
+        for message in ([] if self.is_preview else report.warnings):
             self.report({'WARNING'}, message)
             print(f"Tessera: warning: {message}")
         if scene_core is None:
