@@ -10,12 +10,8 @@ OUT=${FUZZ_BUILD_DIR:-build-fuzz}
 mkdir -p "$OUT/corpus"
 CXX=${FUZZ_CXX:-clang++}
 FLAGS="-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -Inative"
-SRCS=(native/core/bvh.cpp native/core/bvh4.cpp native/core/lights.cpp native/core/mesh.cpp native/core/scene.cpp
-      native/core/background.cpp native/core/sampling.cpp)
-# Sources the core gained since (SIMD, textures) are picked up when present.
-for extra in native/core/simd.cpp native/core/bvh8_avx2.cpp native/core/texture.cpp; do
-  if [ -f "$extra" ] && grep -q "$extra" CMakeLists.txt; then SRCS+=("$extra"); fi
-done
+# The core's sources, as CMakeLists.txt lists them for tessera_core.
+mapfile -t SRCS < <(sed -n '/^add_library(tessera_core STATIC/,/)/p' CMakeLists.txt | grep -o 'native/core/[a-z0-9_]*\.cpp')
 echo "tessera fuzz: building $OUT/fuzz_scene"
 objs=()
 for src in tests/fuzz/fuzz_scene.cpp "${SRCS[@]}"; do
