@@ -3,6 +3,7 @@
 
 import math
 
+import bpy
 import numpy as np
 
 from .materials import image_pixels, output_node
@@ -49,7 +50,8 @@ def _environment(env_node, report, world_name):
 def export_world(scene_core, world, report):
     if world is None:
         return  # Blender renders a missing world as black
-    if not world.use_nodes or world.node_tree is None:
+    # Blender 5.0 always uses a world's nodes (use_nodes is deprecated there).
+    if world.node_tree is None or (bpy.app.version < (5, 0, 0) and not world.use_nodes):
         scene_core.set_world_color(list(world.color)[:3])
         return
     out = output_node(world.node_tree, 'OUTPUT_WORLD')
