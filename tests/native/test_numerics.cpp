@@ -409,12 +409,20 @@ Material principled(float base, float metallic, float roughness, float specular,
   m.ior = ior;
   return m;
 }
+// Blender's Diffuse BSDF with roughness 0: Lambert, albedo 1.
+Material lambertian() {
+  Material m;
+  m.kind = ClosureKind::Diffuse;
+  m.base_color = vec3(1.0f);
+  m.roughness = 0.0f;
+  return m;
+}
 }  // namespace
 
 // What holds: lobes that conserve energy return the background within 1%.
 //  - smooth (roughness 0) conductor with base colour 1: F = 1 everywhere, a mirror;
 //  - smooth glass, any IOR: reflection F and refraction 1 - F sum to 1;
-//  - Principled diffuse (Burley, as Cycles 3.x) with roughness 0.5 and specular 0.
+//  - a Lambertian sphere (Diffuse BSDF, albedo 1).
 TEST(Numerics, WhiteFurnaceConservingLobesReturnTheBackground) {
   struct Case { const char* name; Material m; };
   const Case cases[] = {
@@ -423,9 +431,10 @@ TEST(Numerics, WhiteFurnaceConservingLobesReturnTheBackground) {
       {"smooth glass ior 1.0001", principled(1.0f, 0.0f, 0.0f, 0.5f, 1.0f, 1.0001f)},
       {"smooth glass ior 4", principled(1.0f, 0.0f, 0.0f, 0.5f, 1.0f, 4.0f)},
       {"rough conductor r=0.1", principled(1.0f, 1.0f, 0.1f, 0.5f, 0.0f)},
+      {"Lambertian (Diffuse BSDF)", lambertian()},
   };
   for (const Case& c : cases) {
-    const double v = furnace(c.m);
+    const double v = furnace(c.m, 1.0f, false, 256);
     std::printf("furnace %-26s %.4f\n", c.name, v);
     EXPECT_NEAR(v, 1.0, 0.01) << c.name;
   }
