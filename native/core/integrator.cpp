@@ -74,6 +74,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
+  vec3 prev_p(0.0f);  // the last scattering vertex: light pdfs for MIS are seen from it
   bool count_emission_fully = true;  // camera rays and delta bounces: no MIS
   // Bounces of each kind so far (BSDFSample::Kind), for the per-kind limits.
   int kind_bounces[3] = {0, 0, 0};
@@ -125,7 +126,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       float w = 1.0f;
       if (!count_emission_fully) {
         float cos_l = std::abs(glm::dot(ray.d, si.ng));
-        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(hit.instance, hit.prim, mis_t + hit.t, cos_l));
+        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(prev_p, hit.instance, hit.prim, mis_t + hit.t, cos_l));
       }
       add(bounce, beta * le * w);
     }
@@ -203,6 +204,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
     prev_bsdf_pdf = bs.pdf;
+    prev_p = si.p;
     count_emission_fully = bs.delta;
     mis_t = 0.0f;
     ++kind_bounces[bs.kind];

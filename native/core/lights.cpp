@@ -31,6 +31,41 @@ float shadow_end_error(const vec3& p, const vec3& q) {
   return gamma(8) * (max_component(glm::abs(p)) + max_component(glm::abs(q))) * 2.0f;
 }
 
+// How sample() samples an emissive triangle from the shading point p, by
+// the solid angle omega it subtends: below kMinSphericalSampleArea (pbrt-v4
+// Triangle::Sample's bound) uniformly by area, since seen that small the
+// area density is nearly constant in solid angle anyway; otherwise
+// uniformly in solid angle (Arvo 1995, sample_spherical_triangle). A large
+// triangle close to p (a quad light just below a ceiling) is where area
+// sampling's 1/d^2 weights made fireflies, which Russian roulette then
+// multiplied (McGuire's Cornell box, the ceiling above its light).
+constexpr float kMinSphericalSampleArea = 3e-4f;
+
+// Solid angle of triangle t from p when sample() samples it by solid angle,
+// with its corners as unit vectors from p; 0 when it samples it by area.
+// sample() and pdf_triangle() decide with this one function.
+float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3]) {
+  const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
+  // Seen from at least d away, a triangle subtends at most area / d^2.
+  const vec3 centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
+  const float r2 = std::max(glm::dot(t.p0 - centre, t.p0 - centre),
+                            std::max(glm::dot(v1 - centre, v1 - centre), glm::dot(v2 - centre, v2 - centre)));
+  const float d = glm::length(p - centre) - std::sqrt(r2);
+  if (d > 0.0f && t.area < kMinSphericalSampleArea * d * d) return 0.0f;
+  // A point in the triangle's plane (on the emitter itself, or on its other
+  // triangles) receives nothing from it; its corners then lie on one great
+  // circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
+  // it the zero cosine it should have.
+  const float h = std::abs(glm::dot(p - t.p0, t.n));
+  if (h <= 1e-5f * std::sqrt(t.area) + 1e-6f * (max_component(glm::abs(p)) + max_component(glm::abs(t.p0)))) return 0.0f;
+  const vec3 a = t.p0 - p, b = v1 - p, c = v2 - p;
+  const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
+  if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;
+  corners[0] = a / la, corners[1] = b / lb, corners[2] = c / lc;
+  const float omega = spherical_triangle_area(corners[0], corners[1], corners[2]);
+  return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
+}
+
 float light_power(const Light& l, float scene_radius) {
   float lum = luminance(l.radiance);
   switch (l.type) {
@@ -97,13 +132,30 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
   }
   if (entry >= nl) {
     const EmissiveTriangle& t = triangles_[entry - nl];
-    vec2 b = sample_uniform_triangle(u);
-    vec3 q = t.p0 + b.x * t.e1 + b.y * t.e2;
-    vec3 d = q - p;
-    float dist2 = glm::dot(d, d);
-    if (dist2 <= 0.0f) return false;
-    ls.dist = std::sqrt(dist2);
-    ls.wi = d / ls.dist;
+    vec3 corners[3];
+    const float omega = spherical_sampling_area(t, p, corners);
+    vec3 q;
+    float dist2;
+    if (omega > 0.0f) {
+      vec3 w;
+      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], u, &w)) return false;
+      // Where the sampled direction meets the triangle's plane.
+      const float denom = glm::dot(w, t.n);
+      const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;
+      if (!(s > 0.0f && std::isfinite(s))) return false;
+      q = p + s * w;
+      ls.wi = w;
+      ls.dist = s;
+      dist2 = s * s;
+    } else {
+      const vec2 b = sample_uniform_triangle(u);
+      q = t.p0 + b.x * t.e1 + b.y * t.e2;
+      const vec3 d = q - p;
+      dist2 = glm::dot(d, d);
+      if (dist2 <= 0.0f) return false;
+      ls.dist = std::sqrt(dist2);
+      ls.wi = d / ls.dist;
+    }
     // The emitter is geometry: a shadow ray that reaches it is blocked by it.
     // Stop short of it by a bound on the rounding of both ends: q here, the
     // triangle as the BVH tests it (in its instance's space), and the shading
@@ -113,7 +165,7 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
     float cos_l = -glm::dot(ls.wi, t.n);  // > 0: we see the front face
     if (cos_l == 0.0f) return false;
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
-    ls.pdf = pmf * dist2 / (std::abs(cos_l) * t.area);
+    ls.pdf = omega > 0.0f ? pmf / omega : pmf * dist2 / (std::abs(cos_l) * t.area);
     ls.is_delta = false;
     return max_component(ls.li) > 0.0f;
   }
@@ -194,12 +246,15 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
   }
 }
 
-float LightSampler::pdf_triangle(uint32_t instance, uint32_t prim, float dist, float cos_l) const {
+float LightSampler::pdf_triangle(const vec3& p, uint32_t instance, uint32_t prim, float dist, float cos_l) const {
   const uint64_t key = (uint64_t(instance) << 32) | prim;
   auto it = std::lower_bound(triangle_keys_.begin(), triangle_keys_.end(), key);
   if (it == triangle_keys_.end() || *it != key || cos_l <= 0.0f) return 0.0f;
   const uint32_t t = triangle_order_[it - triangle_keys_.begin()];
-  return selection_pmf(uint32_t(lights_.size()) + t) * dist * dist / (cos_l * triangles_[t].area);
+  const float pmf = selection_pmf(uint32_t(lights_.size()) + t);
+  vec3 corners[3];
+  const float omega = spherical_sampling_area(triangles_[t], p, corners);
+  return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * triangles_[t].area);
 }
 
 float LightSampler::pdf_area(uint32_t light, float dist, float cos_l) const {

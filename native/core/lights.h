@@ -61,9 +61,10 @@ class LightSampler {
 
   bool sample(const vec3& p, float u_select, vec2 u, LightSample& ls) const;
 
-  // Density with which sample() would have produced direction wi hitting the
-  // emissive triangle (instance, prim) at distance dist with cosine cos_l.
-  float pdf_triangle(uint32_t instance, uint32_t prim, float dist, float cos_l) const;
+  // Density with which sample() from point p would have produced the
+  // direction hitting the emissive triangle (instance, prim) at distance
+  // dist with cosine cos_l.
+  float pdf_triangle(const vec3& p, uint32_t instance, uint32_t prim, float dist, float cos_l) const;
   float pdf_area(uint32_t light, float dist, float cos_l) const;
   // Point and spot lights with a radius, seen as the disk facing the ray origin (Cycles 3.x).
   float pdf_sphere(uint32_t light, float dist, float cos_l) const;

@@ -2,6 +2,52 @@
 
 namespace tessera {
 
+namespace {
+using dvec3 = glm::dvec3;
+// Angle between unit vectors, accurate near 0 and pi (pbrt-v4 AngleBetween).
+double angle_between(const dvec3& v1, const dvec3& v2) {
+  if (glm::dot(v1, v2) < 0.0) return M_PI - 2.0 * std::asin(std::min(1.0, glm::length(v1 + v2) / 2.0));
+  return 2.0 * std::asin(std::min(1.0, glm::length(v2 - v1) / 2.0));
+}
+}  // namespace
+
+bool sample_spherical_triangle(const vec3& a_, const vec3& b_, const vec3& c_, vec2 u, vec3* w) {
+  // In double: for a point almost in the triangle's plane the corners are
+  // almost on one great circle, and in float the construction falls apart
+  // (light lost next to a quad light 1e-5 of its size away).
+  const dvec3 a = glm::normalize(dvec3(a_)), b = glm::normalize(dvec3(b_)), c = glm::normalize(dvec3(c_));
+  // Normals of the great circles through each pair of corners.
+  dvec3 n_ab = glm::cross(a, b), n_bc = glm::cross(b, c), n_ca = glm::cross(c, a);
+  if (glm::dot(n_ab, n_ab) == 0.0 || glm::dot(n_bc, n_bc) == 0.0 || glm::dot(n_ca, n_ca) == 0.0) return false;
+  n_ab = glm::normalize(n_ab), n_bc = glm::normalize(n_bc), n_ca = glm::normalize(n_ca);
+  // Interior angles at a, b, c; the area is their excess over pi.
+  const double alpha = angle_between(n_ab, -n_ca);
+  const double beta = angle_between(n_bc, -n_ab);
+  const double gamma_ = angle_between(n_ca, -n_bc);
+  const double area_plus_pi = alpha + beta + gamma_;
+  if (!(area_plus_pi > M_PI)) return false;
+  // Sub-triangle (a, b, c') of area u.x * area: Arvo's closed form for the
+  // cosine of the arc from a to c' (pbrt-v4 A.5.5, phi = A' - alpha).
+  const double ap_pi = M_PI + u.x * (area_plus_pi - M_PI);
+  const double cos_alpha = std::cos(alpha), sin_alpha = std::sin(alpha);
+  const double sin_phi = std::sin(ap_pi) * cos_alpha - std::cos(ap_pi) * sin_alpha;
+  const double cos_phi = std::cos(ap_pi) * cos_alpha + std::sin(ap_pi) * sin_alpha;
+  const double k1 = cos_phi + cos_alpha;
+  const double k2 = sin_phi - sin_alpha * glm::dot(a, b);
+  double cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / ((k2 * sin_phi + k1 * cos_phi) * sin_alpha);
+  cos_bp = std::clamp(std::isfinite(cos_bp) ? cos_bp : 1.0, -1.0, 1.0);
+  const dvec3 c_perp = c - glm::dot(c, a) * a;
+  if (!(glm::dot(c_perp, c_perp) > 0.0)) return false;
+  const dvec3 cp = cos_bp * a + std::sqrt(std::max(0.0, 1.0 - cos_bp * cos_bp)) * glm::normalize(c_perp);
+  // Uniform in solid angle along the arc from b to c'.
+  const double cos_theta = 1.0 - u.y * (1.0 - glm::dot(cp, b));
+  const double sin_theta = std::sqrt(std::max(0.0, 1.0 - cos_theta * cos_theta));
+  const dvec3 bp = cp - glm::dot(cp, b) * b;
+  const dvec3 wd = glm::dot(bp, bp) > 0.0 ? cos_theta * b + sin_theta * glm::normalize(bp) : b;
+  *w = vec3(wd);
+  return is_finite(*w);
+}
+
 AliasTable::AliasTable(const std::vector<float>& weights) {
   const size_t n = weights.size();
   if (n == 0) return;

@@ -49,6 +49,25 @@ inline vec2 sample_uniform_triangle(vec2 u) {
   return vec2(b1, 1.0f - b0 - b1);
 }
 
+// Solid angle of the spherical triangle with unit-vector corners a, b, c
+// (Van Oosterom and Strackee 1983: tan(omega/2) = |a.(b x c)| / (1 + a.b +
+// b.c + c.a)); accurate for small triangles, unlike the angle excess.
+inline float spherical_triangle_area(const vec3& a, const vec3& b, const vec3& c) {
+  const glm::dvec3 da(a), db(b), dc(c);
+  const double num = std::abs(glm::dot(da, glm::cross(db, dc)));
+  const double den = 1.0 + glm::dot(da, db) + glm::dot(db, dc) + glm::dot(dc, da);
+  return float(2.0 * std::atan2(num, den));
+}
+
+// Direction uniformly distributed in solid angle over the spherical triangle
+// a, b, c (unit vectors from the shading point to the corners): Arvo 1995,
+// "Stratified sampling of spherical triangles", in the formulation of
+// pbrt-v4 (A.5.5). u.x picks the sub-triangle (a, b, c') of area u.x * area,
+// u.y the point along the arc from b to c'. The density is 1 / area, with
+// the area given by spherical_triangle_area. Returns false for a degenerate
+// triangle.
+bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, vec2 u, vec3* w);
+
 inline float power_heuristic(float f_pdf, float g_pdf) {
   float f = f_pdf * f_pdf, g = g_pdf * g_pdf;
   if (std::isinf(f)) return 1.0f;

@@ -1,0 +1,192 @@
+// Light sampling densities (lights.cpp, sampling.h): every strategy must give
+// the exact irradiance and report the density it samples with, since MIS
+// (pdf_triangle for BSDF-sampled hits) needs the same number.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/background.h"
+#include "core/lights.h"
+#include "core/sampling.h"
+
+using namespace tessera;
+
+namespace {
+
+// Irradiance at p (normal n) from a polygon of unit radiance that p sees
+// whole (Lambert 1760): E = 1/2 sum_i angle(u_i, u_i+1) n.normalize(u_i x u_i+1),
+// u_i the unit vectors to the corners.
+double polygon_irradiance(const std::vector<vec3>& v, const vec3& p, const vec3& n) {
+  double e = 0.0;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const glm::dvec3 a = glm::normalize(glm::dvec3(v[i] - p)), b = glm::normalize(glm::dvec3(v[(i + 1) % v.size()] - p));
+    const double angle = std::acos(std::clamp(glm::dot(a, b), -1.0, 1.0));
+    e += angle * glm::dot(glm::dvec3(n), glm::normalize(glm::cross(a, b)));
+  }
+  return std::abs(0.5 * e);
+}
+
+EmissiveTriangle emissive(const vec3& p0, const vec3& p1, const vec3& p2, uint32_t prim, vec3 le_front, vec3 le_back) {
+  EmissiveTriangle t;
+  t.p0 = p0;
+  t.e1 = p1 - p0;
+  t.e2 = p2 - p0;
+  const vec3 c = glm::cross(t.e1, t.e2);
+  t.area = 0.5f * glm::length(c);
+  t.n = glm::normalize(c);
+  t.le_front = le_front;
+  t.le_back = le_back;
+  t.instance = 0;
+  t.prim = prim;
+  return t;
+}
+
+// A 1 x 1 two-sided quad light of unit radiance in the plane z = 0, centred
+// on the origin, as two emissive triangles.
+std::vector<vec3> quad() { return {{-0.5f, -0.5f, 0}, {0.5f, -0.5f, 0}, {0.5f, 0.5f, 0}, {-0.5f, 0.5f, 0}}; }
+LightSampler quad_light() {
+  const std::vector<vec3> q = quad();
+  LightSampler ls;
+  ls.build({}, {emissive(q[0], q[1], q[2], 0, vec3(1), vec3(1)), emissive(q[0], q[2], q[3], 1, vec3(1), vec3(1))},
+           nullptr, 10.0f);
+  return ls;
+}
+
+struct Estimate {
+  double mean, stderr_, max_weight;
+};
+
+// Irradiance at p (normal n) by light sampling alone, N samples; checks on
+// the way that pdf_triangle gives back the density sample() reported.
+Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p, const vec3& n, int N) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  double sum = 0.0, sum2 = 0.0, max_w = 0.0;
+  for (int i = 0; i < N; ++i) {
+    LightSample s;
+    double w = 0.0;
+    if (lights.sample(p, U(rng), vec2(U(rng), U(rng)), s)) {
+      w = s.li.x * std::max(0.0f, glm::dot(s.wi, n)) / s.pdf;
+      // The triangle hit along wi (the one the point is deepest inside),
+      // as the integrator finds it.
+      int hit = -1;
+      float hit_d = 0.0f, hit_cos = 0.0f, best = -1.0f;
+      for (uint32_t k = 0; k < lights.triangles().size(); ++k) {
+        const EmissiveTriangle& t = lights.triangles()[k];
+        const float denom = glm::dot(s.wi, t.n);
+        if (denom == 0.0f) continue;
+        const float d = glm::dot(t.p0 - p, t.n) / denom;
+        const vec3 q = p + d * s.wi - t.p0;
+        const float d11 = glm::dot(t.e1, t.e1), d12 = glm::dot(t.e1, t.e2), d22 = glm::dot(t.e2, t.e2);
+        const float q1 = glm::dot(q, t.e1), q2 = glm::dot(q, t.e2), det = d11 * d22 - d12 * d12;
+        const float b1 = (d22 * q1 - d12 * q2) / det, b2 = (d11 * q2 - d12 * q1) / det;
+        const float inside = std::min(std::min(b1, b2), 1.0f - b1 - b2);
+        if (d > 0.0f && inside > best) hit = int(k), best = inside, hit_d = d, hit_cos = std::abs(denom);
+      }
+      EXPECT_GT(best, -2e-3f) << "sample " << i << " misses the light";
+      // Directions along the shared edge may be found in either triangle.
+      if (hit >= 0 && best > 1e-4f) {
+        const EmissiveTriangle& t = lights.triangles()[hit];
+        EXPECT_NEAR(lights.pdf_triangle(p, t.instance, t.prim, hit_d, hit_cos), s.pdf, 2e-3f * s.pdf) << "sample " << i;
+      }
+    }
+    sum += w, sum2 += w * w, max_w = std::max(max_w, w);
+  }
+  const double mean = sum / N;
+  return {mean, std::sqrt(std::max(0.0, sum2 / N - mean * mean) / N), max_w};
+}
+
+}  // namespace
+
+TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
+  // Irradiance = integral of cos over the solid angle: the mean of cos times
+  // the solid angle when directions are uniform in it.
+  const vec3 v[3] = {{-1.0f, -0.3f, 0.4f}, {1.2f, -0.5f, 0.5f}, {0.1f, 1.0f, 0.3f}};
+  const vec3 p(0.1f, 0.0f, 0.0f), n(0.0f, 0.0f, 1.0f);
+  const vec3 a = glm::normalize(v[0] - p), b = glm::normalize(v[1] - p), c = glm::normalize(v[2] - p);
+  const float omega = spherical_triangle_area(a, b, c);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  const int N = 1 << 16;
+  double sum = 0.0, sum2 = 0.0;
+  for (int i = 0; i < N; ++i) {
+    vec3 w;
+    ASSERT_TRUE(sample_spherical_triangle(a, b, c, vec2(U(rng), U(rng)), &w));
+    EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
+    // Inside the triangle: on the inner side of all three great circles.
+    EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
+    EXPECT_GE(glm::dot(glm::cross(b, c), w) * glm::dot(glm::cross(b, c), a), -1e-6f);
+    EXPECT_GE(glm::dot(glm::cross(c, a), w) * glm::dot(glm::cross(c, a), b), -1e-6f);
+    const double x = glm::dot(w, n) * omega;
+    sum += x, sum2 += x * x;
+  }
+  const double mean = sum / N, se = std::sqrt((sum2 / N - mean * mean) / N);
+  const double exact = polygon_irradiance({v[0], v[1], v[2]}, p, n);
+  EXPECT_NEAR(mean, exact, 4.0 * se + 1e-4 * exact);
+  // The solid angle itself, against Girard's angle excess in double precision.
+  const glm::dvec3 A(a), B(b), C(c);
+  auto corner = [](const glm::dvec3& x, const glm::dvec3& y, const glm::dvec3& z) {
+    return std::acos(glm::dot(glm::normalize(glm::cross(x, y)), glm::normalize(glm::cross(x, z))));
+  };
+  EXPECT_NEAR(omega, corner(A, B, C) + corner(B, C, A) + corner(C, A, B) - M_PI, 1e-5);
+}
+
+// Close to a large emitter (a ceiling 1 mm above a quad light, as in
+// McGuire's Cornell box) area sampling's weights grow as 1/d^2 (fireflies
+// that Russian roulette then multiplies); solid-angle sampling gives every
+// sample about the same weight. Same irradiance, far smaller spread.
+TEST(LightSampling, TriangleLightCloseByIsSampledBySolidAngle) {
+  const LightSampler lights = quad_light();
+  const std::vector<vec3> q = quad();
+  // Above the middle of a triangle, on the diagonal the two share, and just
+  // outside the quad's edge.
+  for (vec2 xy : {vec2(0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.52f, 0.1f)})
+  for (float h : {1e-5f, 1e-3f, 0.05f, 0.3f}) {
+    const vec3 p(xy.x, xy.y, h), n(0.0f, 0.0f, -1.0f);
+    const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 15);
+    const double exact = polygon_irradiance(q, p, n);
+    EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << "h " << h << " x " << xy.x;
+    // With area sampling, the relative spread at h = 1 mm was > 10 (weights
+    // up to ~1e5); with solid-angle sampling it is the spread of the cosine.
+    EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 15)) / e.mean, 1.5) << "h " << h << " x " << xy.x;
+  }
+}
+
+TEST(LightSampling, FarTriangleLightsAreSampledByAreaWithTheirOwnDensity) {
+  // Far away (solid angle below the threshold), area sampling; the density
+  // reported and the one pdf_triangle recomputes agree there as well.
+  const LightSampler lights = quad_light();
+  const vec3 p(3.0f, -2.0f, 60.0f), n = glm::normalize(vec3(-3.0f, 2.0f, -60.0f));
+  const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 14);
+  const double exact = polygon_irradiance(quad(), p, n);
+  EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
+}
+
+// A point on the light itself lies in its plane: its corners are then on one
+// great circle, the solid angle is 0 or 2 pi by rounding, and Arvo's
+// construction has nothing to work with. Such points must get nothing from
+// the light (lights.cpp takes them to area sampling, whose cosine is 0).
+// While solid-angle sampling was written, McGuire's Cornell box rendered 1.8%
+// bright without that guard; this test did not reproduce it (the hit points
+// here land in the plane differently), so it checks the property only.
+TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
+  // McGuire's Cornell box light: its plane z = 1.98 is not exact in float.
+  const std::vector<vec3> q = {{-0.24f, -0.16f, 1.98f}, {-0.24f, 0.22f, 1.98f}, {0.23f, 0.22f, 1.98f}, {0.23f, -0.16f, 1.98f}};
+  LightSampler lights;
+  lights.build({}, {emissive(q[0], q[1], q[2], 0, vec3(1), vec3(1)), emissive(q[0], q[2], q[3], 1, vec3(1), vec3(1))},
+               nullptr, 10.0f);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (vec2 xy : {vec2(0.2f, 0.1f), vec2(-0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.1f, -0.1f), vec2(0.7f, 0.0f)}) {
+    // On the light, as a ray hit would find it.
+    const vec3 p = q[0] + (xy.x + 0.24f) / 0.47f * (q[3] - q[0]) + (xy.y + 0.16f) / 0.38f * (q[1] - q[0]);
+    double sum = 0.0;
+    for (int i = 0; i < 4096; ++i) {
+      LightSample s;
+      if (lights.sample(p, U(rng), vec2(U(rng), U(rng)), s))
+        sum += s.li.x * std::abs(s.wi.z) / s.pdf;  // cosine at a surface lying on the light
+    }
+    EXPECT_LT(sum / 4096, 1e-4) << "x " << xy.x << " y " << xy.y;
+  }
+}
