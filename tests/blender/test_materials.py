@@ -1,11 +1,13 @@
 """Materials against Cycles on small scenes built here: image textures with
-the mesh's UV map, and the Principled BSDF over roughness, metallic and IOR."""
+the mesh's UV map, the Principled BSDF over roughness, metallic and IOR, and
+the other shader nodes (Mix and Add Shader, Diffuse, Glossy, Glass,
+Transparent, Principled Alpha from a value or an image)."""
 
 import bpy
 import numpy as np
 import pytest
 
-from helpers import compare, render
+from helpers import compare, downsample, render
 from scenes import add_camera, add_plane, empty_scene, principled, set_world
 
 
@@ -79,3 +81,205 @@ def test_principled_roughness_ladder_matches_cycles(roughness, metallic):
     assert np.all(np.isfinite(ours))
     assert np.all(c["mean_rel_diff"] < 0.02), c
     assert c["rel_rmse"] < 0.05, c
+
+
+# ---------------------------------------------------------------- shader nodes beyond one Principled BSDF
+#
+# Each scene is rendered by Tessera and by Cycles in the test (same size,
+# samples and bounces, transparent bounces too) and compared as the issue
+# asks: mean per channel within 2%, and after downsampling by 8 a relative
+# RMSE under 5% and no block off by more than 15%.
+
+def _check(name, ours, ref, mean=0.02, rmse=0.05, block=0.15):
+    """compare() and, stricter than its worst_block at these sizes, the worst
+    pixel of the 1/8-downsampled images (an 8x8 block), relative to the
+    reference block (at least a tenth of the image mean)."""
+    c = compare(ours, ref)
+    dt, dr = downsample(ours, 8), downsample(ref, 8)
+    c["worst_block8"] = float(np.max(np.abs(dt - dr).mean(axis=-1) /
+                                     np.maximum(dr.mean(axis=-1), 0.1 * dr.mean())))
+    print(name, {k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(np.isfinite(ours)), f"{name}: Tessera wrote NaN or Inf pixels"
+    assert np.all(c["mean_rel_diff"] < mean), (name, c)
+    assert c["rel_rmse"] < rmse, (name, c)
+    assert c["worst_block"] < block and c["worst_block8"] < block, (name, c)
+    return c
+
+
+def _both(scene, samples, bounces=4, size=96):
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.tessera.max_transparent_bounces = max(bounces, 1)  # as helpers.render sets Cycles'
+    ours = render(scene, 'TESSERA', samples=samples, bounces=bounces)
+    ref = render(scene, 'CYCLES', samples=samples, bounces=bounces)
+    return ours, ref
+
+
+def _shader_material(name, build):
+    """A material whose Surface is what build(nodes, links) returns (an output socket)."""
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    for n in list(nodes):
+        if n.type != 'OUTPUT_MATERIAL':
+            nodes.remove(n)
+    out = next(n for n in nodes if n.type == 'OUTPUT_MATERIAL')
+    links.new(build(nodes, links), out.inputs['Surface'])
+    return m
+
+
+def _bsdf(nodes, kind, **inputs):
+    n = nodes.new(kind)
+    for k, v in inputs.items():
+        if k == 'distribution':
+            n.distribution = v
+        else:
+            n.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+    return n
+
+
+def _ball_scene(make_material, light=True):
+    """A smooth sphere with the material make_material() returns on a grey floor before a red wall, under a
+    pale world and an area light."""
+    scene = empty_scene()
+    material = make_material()
+    add_plane(20.0, material=principled("Floor", (0.5, 0.5, 0.5), Specular=0.0, Roughness=1.0))
+    add_plane(20.0, location=(0, 3.0, 0), rotation=(np.radians(90), 0, 0),
+              material=principled("Wall", (0.7, 0.15, 0.1), Specular=0.0, Roughness=1.0))
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=64, ring_count=32)
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.data.materials.append(material)
+    add_camera(scene, location=(0, -4.0, 1.6), rotation=(np.radians(80), 0, 0), lens=45)
+    set_world(scene, (0.8, 0.9, 1.0), 1.0)
+    if light:
+        bpy.ops.object.light_add(type='AREA', location=(1.5, -1.0, 3.0))
+        bpy.context.object.data.energy = 300.0
+        bpy.context.object.data.size = 1.0
+    return scene
+
+
+def _mix_material(fac=0.3):
+    def build(nodes, links):
+        d = _bsdf(nodes, 'ShaderNodeBsdfDiffuse', Color=(0.8, 0.3, 0.2))
+        g = _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.9, 0.9), Roughness=0.3, distribution='GGX')
+        mix = nodes.new('ShaderNodeMixShader')
+        mix.inputs['Fac'].default_value = fac
+        links.new(d.outputs[0], mix.inputs[1])
+        links.new(g.outputs[0], mix.inputs[2])
+        return mix.outputs[0]
+    return _shader_material("MixDiffuseGlossy", build)
+
+
+def test_mix_shader_matches_cycles():
+    scene = _ball_scene(lambda: _mix_material(0.3))
+    _check("mix 0.3", *_both(scene, 128))
+
+
+def test_add_shader_matches_cycles():
+    def build(nodes, links):
+        d = _bsdf(nodes, 'ShaderNodeBsdfDiffuse', Color=(0.2, 0.4, 0.6), Roughness=0.5)
+        g = _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(0.5, 0.4, 0.3), Roughness=0.2, distribution='GGX')
+        add = nodes.new('ShaderNodeAddShader')
+        links.new(d.outputs[0], add.inputs[0])
+        links.new(g.outputs[0], add.inputs[1])
+        return add.outputs[0]
+    scene = _ball_scene(lambda: _shader_material("AddDiffuseGlossy", build))
+    _check("add", *_both(scene, 128))
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.2, 0.5, 1.0])
+def test_glossy_roughness_ladder_matches_cycles(roughness):
+    def build(nodes, links):
+        return _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.6, 0.3), Roughness=roughness,
+                     distribution='GGX').outputs[0]
+    scene = _ball_scene(lambda: _shader_material("Glossy", build))
+    _check(f"glossy r={roughness}", *_both(scene, 128))
+
+
+@pytest.mark.parametrize("ior", [1.1, 1.45, 2.0])
+def test_glass_ior_ladder_matches_cycles(ior):
+    def build(nodes, links):
+        return _bsdf(nodes, 'ShaderNodeBsdfGlass', Color=(0.9, 0.95, 1.0), Roughness=0.0, IOR=ior,
+                     distribution='GGX').outputs[0]
+    # World light only: sharp caustics of the area light through the ball are
+    # too noisy for both engines at a few seconds per render.
+    scene = _ball_scene(lambda: _shader_material("Glass", build), light=False)
+    _check(f"glass ior={ior}", *_both(scene, 256, bounces=8))
+
+
+def _see_through_scene(make_material, size=2.0):
+    """A plane with the material make_material() returns between the camera and a coloured diffuse wall, lit
+    from the camera's side."""
+    scene = empty_scene()
+    material = make_material()
+    add_plane(20.0, location=(0, 2.0, 0), rotation=(np.radians(90), 0, 0),
+              material=principled("Wall", (0.2, 0.6, 0.3), Specular=0.0, Roughness=1.0))
+    add_plane(size, location=(0, 0.5, 0), rotation=(np.radians(90), 0, 0), material=material)
+    add_camera(scene, location=(0, -4.0, 0), rotation=(np.radians(90), 0, 0), lens=50)
+    set_world(scene, (0.3, 0.3, 0.3), 1.0)
+    bpy.ops.object.light_add(type='AREA', location=(0.8, -2.0, 1.5), rotation=(np.radians(70), 0, 0))
+    bpy.context.object.data.energy = 400.0
+    bpy.context.object.data.size = 0.5
+    return scene
+
+
+def test_transparent_plane_matches_cycles():
+    def build(nodes, links):
+        t = _bsdf(nodes, 'ShaderNodeBsdfTransparent', Color=(0.9, 0.6, 0.3))
+        d = _bsdf(nodes, 'ShaderNodeBsdfDiffuse', Color=(0.8, 0.8, 0.8))
+        mix = nodes.new('ShaderNodeMixShader')
+        mix.inputs['Fac'].default_value = 0.25  # a quarter diffuse: visible, and casting a tinted shadow
+        links.new(t.outputs[0], mix.inputs[1])
+        links.new(d.outputs[0], mix.inputs[2])
+        return mix.outputs[0]
+    scene = _see_through_scene(lambda: _shader_material("Tinted", build))
+    _check("transparent", *_both(scene, 128))
+
+
+def test_principled_alpha_matches_cycles():
+    scene = _see_through_scene(lambda: principled("HalfAlpha", (0.9, 0.9, 0.2), Roughness=0.5, Alpha=0.5))
+    _check("alpha 0.5", *_both(scene, 128))
+
+
+def cutout_material():
+    """Principled with an image's alpha as Alpha: opaque stripes and holes (a leaf cut-out)."""
+    img = bpy.data.images.new("cutout", 32, 32, alpha=True)
+    px = np.ones((32, 32, 4), dtype=np.float32)
+    px[..., 3] = ((np.arange(32)[None, :] // 4) % 2).astype(np.float32)  # 4-texel vertical stripes
+    img.pixels.foreach_set(px.ravel())
+    m = principled("Cutout", (0.9, 0.8, 0.3), Roughness=0.5)
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    tex = nodes.new('ShaderNodeTexImage')
+    tex.image = img
+    tex.interpolation = 'Closest'
+    links.new(tex.outputs['Alpha'], nodes["Principled BSDF"].inputs['Alpha'])
+    return m
+
+
+def test_alpha_cutout_texture_matches_cycles():
+    scene = _see_through_scene(cutout_material, size=2.5)
+    ours, ref = _both(scene, 128)
+    _check("alpha cut-out", ours, ref)
+    # Per texel, not the average: the stripes show, as in Cycles (the columns
+    # through the plane alternate between plane colour and wall).
+    row = ours[ours.shape[0] // 2, :, :3].mean(axis=-1)
+    ref_row = ref[ref.shape[0] // 2, :, :3].mean(axis=-1)
+    assert np.std(row) > 0.5 * np.std(ref_row) > 0.0, (np.std(row), np.std(ref_row))
+
+
+def test_mix_factor_from_a_texture_is_named_in_a_warning():
+    from tessera import engine
+
+    def build(nodes, links):
+        d = _bsdf(nodes, 'ShaderNodeBsdfDiffuse', Color=(0.8, 0.3, 0.2))
+        g = _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.9, 0.9), Roughness=0.3)
+        m = nodes.new('ShaderNodeMixShader')
+        fresnel = nodes.new('ShaderNodeFresnel')
+        links.new(fresnel.outputs[0], m.inputs['Fac'])
+        links.new(d.outputs[0], m.inputs[1])
+        links.new(g.outputs[0], m.inputs[2])
+        return m.outputs[0]
+    scene = _ball_scene(lambda: _shader_material("FresnelMix", build))
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    render(scene, 'TESSERA', samples=1, bounces=0)
+    warnings = " ".join(engine.last_render_stats.get("warnings", []))
+    assert "FresnelMix" in warnings and "Mix Shader" in warnings and "varies over the surface" in warnings, warnings
