@@ -65,14 +65,6 @@ BSDF::Lobe& BSDF::add_lobe(Lobe::Type type, float sample_weight) {
   Lobe& l = lobes_[num_lobes_];
   sample_weight_[num_lobes_++] = sample_weight;
   l.type = type;
-  l.prob = 0.0f;
-  l.k = 0.0f;
-  l.tint = vec3(1.0f);
-  l.ggx = GGX{0.0f};
-  l.a = l.b = 0.0f;
-  l.cspec0 = vec3(0.0f);
-  l.spec_ior = 1.5f;
-  l.eta = 1.0f;
   return l;
 }
 
@@ -122,6 +114,7 @@ void BSDF::add_principled(const Closure& c, bool back_face) {
   if (k_reflect > 0.0f) {  // untinted, as Cycles 3.x's principled glass reflection
     Lobe& l = add_lobe(Lobe::kReflection, k_reflect);
     l.k = k_reflect;
+    l.tint = vec3(1.0f);
     l.ggx = GGX{alpha};
   }
   if (w_refract > 0.0f) {
@@ -153,6 +146,7 @@ void BSDF::add_closure(const Closure& c, bool back_face) {
         l.b = roughness * div;
       } else {
         l.a = kInvPi;
+        l.b = 0.0f;
       }
       break;
     }
@@ -203,6 +197,7 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
     const float a = std::max(m.alpha, 0.0f);
     Lobe& l = add_lobe(Lobe::kTransparent, c0.weight * (1.0f - a));
     l.k = c0.weight * (1.0f - a);
+    l.tint = vec3(1.0f);
     c0.weight *= a;
   }
   add_closure(c0, back_face);
@@ -212,9 +207,14 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
   for (int i = 0; i < num_lobes_; ++i) total += sample_weight_[i];
   if (total > 0.0f) {
     for (int i = 0; i < num_lobes_; ++i) {
-      lobes_[i].prob = sample_weight_[i] / total;
-      if (lobes_[i].prob > 0.0f && !lobes_[i].delta()) has_smooth_ = true;
+      Lobe& l = lobes_[i];
+      l.prob = sample_weight_[i] / total;
+      l.is_delta = l.delta();
+      l.is_transmit = l.transmits();
+      if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true;
     }
+  } else {
+    num_lobes_ = 0;  // nothing scatters
   }
 }
 
@@ -303,7 +303,7 @@ vec3 BSDF::f(const vec3& wi_world) const {
   for (int i = 0; i < num_lobes_; ++i) {
     const Lobe& l = lobes_[i];
     // The geometric side decides reflection vs transmission (no light leaks).
-    if (l.prob == 0.0f || l.delta() || l.transmits() == reflect_side) continue;
+    if (l.prob == 0.0f || l.is_delta || l.is_transmit == reflect_side) continue;
     sum += eval_lobe(l, wi);
   }
   return sum;
@@ -315,7 +315,7 @@ float BSDF::pdf(const vec3& wi_world) const {
   float p = 0.0f;
   for (int i = 0; i < num_lobes_; ++i) {
     const Lobe& l = lobes_[i];
-    if (l.prob == 0.0f || l.delta() || l.transmits() == reflect_side) continue;
+    if (l.prob == 0.0f || l.is_delta || l.is_transmit == reflect_side) continue;
     p += l.prob * pdf_lobe(l, wi);
   }
   return p;

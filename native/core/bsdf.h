@@ -58,7 +58,10 @@ class BSDF {
       kTransparent, // straight on: tint x k
     } type;
     // No default initialisers: the lobe array is left uninitialised and
-    // add_lobe() sets every field a lobe uses (no cost per hit for the rest).
+    // whoever adds a lobe sets the fields its type reads (no cost per hit
+    // for the rest): kBurley tint, a; kOrenNayar tint, a, b; kSpecular k,
+    // ggx, cspec0, spec_ior; kReflection k, tint, ggx; kRefraction k, tint,
+    // ggx, eta; kTransparent k, tint.
     float prob;
     float k;
     vec3 tint;
@@ -67,6 +70,7 @@ class BSDF {
     vec3 cspec0;
     float spec_ior;
     float eta;
+    bool is_delta, is_transmit;  // delta() and transmits(), cached by the constructor for f() and pdf()
     bool delta() const {
       return type == kTransparent || ((type == kSpecular || type == kReflection || type == kRefraction) && ggx.alpha <= kSmoothAlpha);
     }

@@ -2,6 +2,7 @@
 // that place them (the TLAS is built over their world bounds), materials,
 // lights, world and camera. Built once per render from the add-on's arrays.
 #pragma once
+#include <optional>
 #include <string>
 #include <vector>
 #include "background.h"
@@ -78,6 +79,13 @@ class Scene {
   Material material_at(const SurfaceInteraction& si) const {
     const Material& m = materials[si.material];
     return m.has_textures() ? textured_material(m, si.uv) : m;
+  }
+  // The same without copying (a Material with its closure list is ~440
+  // bytes): the stored material, or the textured copy made in `storage`.
+  const Material& material_at(const SurfaceInteraction& si, std::optional<Material>& storage) const {
+    const Material& m = materials[si.material];
+    if (!m.has_textures()) return m;
+    return storage.emplace(textured_material(m, si.uv));
   }
 
   const LightSampler& light_sampler() const { return light_sampler_; }
