@@ -254,7 +254,7 @@ struct FastBuilder {
 
   // Centroids are handled doubled (lo + hi) throughout.
   void bin_range(Bins& bins, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
-    const __m128i maxb = _mm_set1_epi32(nb - 1);
+    const __m128i maxb = _mm_set1_epi32(bins.n - 1);
     for (uint32_t i = begin; i < end; ++i) {
       const PrimRef& r = refs[i];
       const __m128 c = centroid2(r);
@@ -278,12 +278,15 @@ struct FastBuilder {
     const __m128 ext = _mm_sub_ps(_mm_add_ps(cbox.hi, cbox.hi), cmin);
     alignas(16) float e[4];
     _mm_store_ps(e, ext);
+    const uint32_t n = end - begin;
+    // No more bins than references: small ranges (most nodes) sweep fewer
+    // empty bins.
+    const int nb = n < uint32_t(this->nb) ? std::max(2, int(n)) : this->nb;
     alignas(16) float sc[4];
     for (int a = 0; a < 4; ++a) sc[a] = a < 3 && e[a] > 0.0f ? float(nb) * 0.99999f / e[a] : 0.0f;
     const __m128 scale = _mm_load_ps(sc);
     cmin_out = cmin;
     scale_out = scale;
-    const uint32_t n = end - begin;
     Bins bins(nb);
     if (opt.parallel && n > 65536) {
       tbb::combinable<Bins> local([&] { return Bins(nb); });
