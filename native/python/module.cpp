@@ -75,6 +75,12 @@ Closure to_closure(const py::dict& d) {
 
 // A world-space point in the committed scene's render space (Scene::render_origin).
 vec3 to_render_space(const Scene& s, const vec3& p) { return vec3(glm::dvec3(p) - glm::dvec3(s.render_origin)); }
+// A world-space transform in render space: what is added or changed after a
+// commit() that moved the scene lands where the rest of it is.
+mat4 to_render_space(const Scene& s, mat4 m) {
+  m[3] = vec4(to_render_space(s, vec3(m[3])), 1.0f);
+  return m;
+}
 
 class PySession {
  public:
@@ -229,7 +235,7 @@ PYBIND11_MODULE(_core, m) {
             if (mesh >= s.meshes.size()) throw std::out_of_range("add_instance: no mesh with index " + std::to_string(mesh));
             for (uint32_t mat : slot_materials)
               if (mat >= s.materials.size()) throw std::out_of_range("add_instance: no material with index " + std::to_string(mat));
-            return s.add_instance(mesh, to_mat4(matrix, "matrix"), slot_materials);
+            return s.add_instance(mesh, to_render_space(s, to_mat4(matrix, "matrix")), slot_materials);
           },
           py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"))
       .def(
@@ -317,7 +323,7 @@ PYBIND11_MODULE(_core, m) {
             else if (type == "SUN") l.type = LightType::Sun;
             else if (type == "AREA") l.type = LightType::Area;
             else throw std::invalid_argument("unknown light type '" + type + "'; expected POINT, SPOT, SUN or AREA");
-            l.position = to_vec3(position, "position");
+            l.position = to_render_space(s, to_vec3(position, "position"));
             l.direction = glm::normalize(to_vec3(direction, "direction"));
             l.axis_u = to_vec3(axis_u, "axis_u");
             l.axis_v = to_vec3(axis_v, "axis_v");
@@ -361,7 +367,7 @@ PYBIND11_MODULE(_core, m) {
             if (width <= 0 || height <= 0) throw std::invalid_argument("image size must be positive");
             Camera& c = s.camera;
             c.type = type == "ORTHO" ? Camera::Type::Orthographic : Camera::Type::Perspective;
-            c.to_world = to_mat4(matrix, "camera matrix");
+            c.to_world = to_render_space(s, to_mat4(matrix, "camera matrix"));
             c.left = left, c.right = right, c.bottom = bottom, c.top = top;
             c.clip_start = clip_start, c.clip_end = clip_end;
             c.width = width, c.height = height;

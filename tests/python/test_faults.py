@@ -101,3 +101,52 @@ def test_degenerate_materials_and_images_stay_finite():
         px = session.pixels()
         assert px.shape == (h, w, 4)
         assert np.all(np.isfinite(px)), (w, h)
+
+
+def test_scene_far_from_the_origin_can_be_changed_after_commit():
+    """commit() moves a scene seen from 1e5 away into camera-relative space;
+    a camera, instance or light given afterwards in world space lands in the
+    same place, and ray queries stay in world space."""
+    far = np.array([1e5, -1e5, 1e5], np.float32)
+
+    def build():
+        s = core.Scene()
+        p = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)
+        m = s.add_mesh(p, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+        xf = np.eye(4, dtype=np.float32)
+        xf[:3, 3] = far
+        s.add_instance(m, xf, [s.add_material(base_color=[0.5, 0.5, 0.5])])
+        s.add_light(type="POINT", position=(far + [0, 0, 2]).tolist(), radiance=[10, 10, 10])
+        return s, m, xf
+
+    def camera(s):
+        cam = np.eye(4, dtype=np.float32)
+        cam[:3, 3] = far + [0, 0, 3]
+        s.set_camera(type="PERSP", matrix=cam, left=-0.5, right=0.5, bottom=-0.5, top=0.5,
+                     clip_start=0.01, clip_end=100.0, width=16, height=16)
+
+    def image(s):
+        opt = core.RenderOptions()
+        opt.samples = 4
+        session = core.Session(s, opt)
+        session.render()
+        return session.pixels()
+
+    s, m, xf = build()
+    camera(s)
+    s.commit()
+    first = image(s)
+    assert first[..., :3].mean() > 0.1
+    hit = s.intersect((far + [0.25, 0.25, 3]).tolist(), [0, 0, -1])
+    assert hit is not None and abs(hit[0] - 3.0) < 1e-3
+    assert np.allclose(hit[3], far + [0.25, 0.25, 0], atol=0.02)
+    # The same camera again, and a second commit: the same image.
+    camera(s)
+    s.commit()
+    assert np.array_equal(image(s), first)
+    # An instance added afterwards in world space is where it should be.
+    xf2 = xf.copy()
+    xf2[0, 3] += 10.0
+    s.add_instance(m, xf2, [0])
+    s.commit()
+    assert s.intersect((far + [10, 0, 3]).tolist(), [0, 0, -1]) is not None
