@@ -171,7 +171,7 @@ def _mix_material(fac=0.3):
 
 def test_mix_shader_matches_cycles():
     scene = _ball_scene(lambda: _mix_material(0.3))
-    _check("mix 0.3", *_both(scene, 128))
+    _check("mix 0.3", *_both(scene, 256))
 
 
 def test_add_shader_matches_cycles():
@@ -183,7 +183,7 @@ def test_add_shader_matches_cycles():
         links.new(g.outputs[0], add.inputs[1])
         return add.outputs[0]
     scene = _ball_scene(lambda: _shader_material("AddDiffuseGlossy", build))
-    _check("add", *_both(scene, 128))
+    _check("add", *_both(scene, 256))
 
 
 @pytest.mark.parametrize("roughness", [0.0, 0.2, 0.5, 1.0])
@@ -192,7 +192,7 @@ def test_glossy_roughness_ladder_matches_cycles(roughness):
         return _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.6, 0.3), Roughness=roughness,
                      distribution='GGX').outputs[0]
     scene = _ball_scene(lambda: _shader_material("Glossy", build))
-    _check(f"glossy r={roughness}", *_both(scene, 128))
+    _check(f"glossy r={roughness}", *_both(scene, 256))
 
 
 @pytest.mark.parametrize("ior", [1.1, 1.45, 2.0])
@@ -257,7 +257,7 @@ def cutout_material():
 
 def test_alpha_cutout_texture_matches_cycles():
     scene = _see_through_scene(cutout_material, size=2.5)
-    ours, ref = _both(scene, 128)
+    ours, ref = _both(scene, 256)
     _check("alpha cut-out", ours, ref)
     # Per texel, not the average: the stripes show, as in Cycles (the columns
     # through the plane alternate between plane colour and wall).
