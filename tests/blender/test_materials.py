@@ -283,3 +283,5 @@ def test_mix_factor_from_a_texture_is_named_in_a_warning():
     render(scene, 'TESSERA', samples=1, bounces=0)
     warnings = " ".join(engine.last_render_stats.get("warnings", []))
     assert "FresnelMix" in warnings and "Mix Shader" in warnings and "varies over the surface" in warnings, warnings
+    # The factor is Fresnel's average over viewing directions (0.084 at IOR 1.45), not 0 (pure diffuse).
+    assert "varies with the viewing angle" in warnings and "(0.084)" in warnings, warnings

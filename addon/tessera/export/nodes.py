@@ -1,7 +1,8 @@
 """Folds the value part of a node graph (Value, RGB, Math, Mix, Separate /
 Combine, Geometry > Backfacing, ...) into constants, once per material and per
 face side. Nodes Tessera does not model are named in one warning each and
-replaced by the closest constant."""
+replaced by the closest constant (Fresnel and Layer Weight: their average
+over viewing directions)."""
 
 import math
 
@@ -24,6 +25,23 @@ def socket_default(socket):
         return tuple(float(x) for x in v)[:3]
     except TypeError:
         return float(v)
+
+
+def fresnel_dielectric_cos(cos_i, eta):
+    """Cycles' fresnel_dielectric_cos: unpolarised Fresnel reflectance."""
+    c = abs(cos_i)
+    g = eta * eta - 1.0 + c * c
+    if g <= 0.0:
+        return 1.0
+    g = math.sqrt(g)
+    a = (g - c) / (g + c)
+    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+    return 0.5 * a * a * (1.0 + b * b)
+
+
+def hemisphere_average(f, n=256):
+    """Cosine-weighted average over the hemisphere of f(cos): integral of f(mu) 2 mu dmu."""
+    return sum(f((i + 0.5) / n) * 2.0 * (i + 0.5) / n for i in range(n)) / n
 
 
 def srgb_to_linear(c):
@@ -103,6 +121,8 @@ class Evaluator:
             return float(c[idx])
         if t in ('COMBRGB', 'COMBINE_COLOR', 'COMBINE_RGB'):
             return tuple(to_float(self.socket(node.inputs[i])) for i in range(3))
+        if t in ('FRESNEL', 'LAYER_WEIGHT'):
+            return self.view_dependent(node, out)
         if t == 'TEX_IMAGE':
             if self.image_average is not None:
                 avg = self.image_average(node)
@@ -115,6 +135,30 @@ class Evaluator:
         self.warn(f"node '{node.name}' ({node.bl_idname}) is not supported; its output is taken as "
                   f"{'black' if out.type == 'RGBA' else '0'}.")
         return (0.0, 0.0, 0.0) if out.type == 'RGBA' else 0.0
+
+    def view_dependent(self, node, out):
+        """Fresnel and Layer Weight depend on the angle to the viewer, which a
+        constant cannot follow: their average over directions (cosine-
+        weighted over the hemisphere), with a warning. Formulas of Cycles'
+        svm_node_fresnel and svm_node_layer_weight."""
+        if node.inputs['Normal'].is_linked:
+            self.warn(f"the Normal input of '{node.name}' is ignored.")
+        if node.type == 'FRESNEL':
+            eta = max(to_float(self.socket(node.inputs['IOR'])), 1e-5)
+            eta = 1.0 / eta if self.backfacing else eta
+            value = hemisphere_average(lambda mu: fresnel_dielectric_cos(mu, eta))
+        else:
+            blend = min(max(to_float(self.socket(node.inputs['Blend'])), 0.0), 1.0 - 1e-5)
+            if out.name == 'Fresnel':
+                eta = max(1.0 - blend, 1e-5)
+                eta = eta if self.backfacing else 1.0 / eta
+                value = hemisphere_average(lambda mu: fresnel_dielectric_cos(mu, eta))
+            else:  # Facing
+                k = 1.0 if blend == 0.5 else (2.0 * blend if blend < 0.5 else 0.5 / (1.0 - blend))
+                value = hemisphere_average(lambda mu: 1.0 - mu ** k)
+        self.warn(f"'{node.name}' ({node.bl_idname}) varies with the viewing angle, which Tessera does not evaluate "
+                  f"per pixel; its average over directions ({value:.3f}) is used.")
+        return value
 
     def mix(self, node):
         # Legacy MixRGB (3.3 and before) and the Mix node (3.4 on), colour mode.
