@@ -285,3 +285,28 @@ def test_mix_factor_from_a_texture_is_named_in_a_warning():
     assert "FresnelMix" in warnings and "Mix Shader" in warnings and "varies over the surface" in warnings, warnings
     # The factor is Fresnel's average over viewing directions (0.084 at IOR 1.45), not 0 (pure diffuse).
     assert "varies with the viewing angle" in warnings and "(0.084)" in warnings, warnings
+
+
+def test_image_texture_on_a_diffuse_bsdf_matches_cycles():
+    """Per-texel textures reach the first textured closure of any kind (here a Diffuse BSDF in a mix)."""
+    scene = empty_scene()
+
+    def build(nodes, links):
+        img = bpy.data.images.new("grid", 64, 64)
+        img.generated_type = 'COLOR_GRID'
+        tex = nodes.new('ShaderNodeTexImage')
+        tex.image = img
+        tex.interpolation = 'Closest'
+        d = nodes.new('ShaderNodeBsdfDiffuse')
+        links.new(tex.outputs['Color'], d.inputs['Color'])
+        g = _bsdf(nodes, 'ShaderNodeBsdfGlossy', Color=(1.0, 1.0, 1.0), Roughness=0.4, distribution='GGX')
+        mix = nodes.new('ShaderNodeMixShader')
+        mix.inputs['Fac'].default_value = 0.2
+        links.new(d.outputs[0], mix.inputs[1])
+        links.new(g.outputs[0], mix.inputs[2])
+        return mix.outputs[0]
+    add_plane(2.0, material=_shader_material("TexturedDiffuse", build))
+    add_camera(scene, location=(0, 0, 3.0), lens=40)
+    set_world(scene, (1.0, 1.0, 1.0), 1.0)
+    ours, ref = _both(scene, 64, bounces=1)
+    _check("textured diffuse", ours, ref)
