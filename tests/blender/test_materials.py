@@ -235,9 +235,12 @@ def test_transparent_plane_matches_cycles():
     _check("transparent", *_both(scene, 128))
 
 
-def test_principled_alpha_matches_cycles():
-    scene = _see_through_scene(lambda: principled("HalfAlpha", (0.9, 0.9, 0.2), Roughness=0.5, Alpha=0.5))
-    _check("alpha 0.5", *_both(scene, 128))
+@pytest.mark.parametrize("emission", [0.0, 2.0])
+def test_principled_alpha_matches_cycles(emission):
+    # Emission is mixed with the rest: it scales with alpha too.
+    scene = _see_through_scene(lambda: principled("HalfAlpha", (0.9, 0.9, 0.2), Roughness=0.5, Alpha=0.5,
+                                                  Emission=(0.5, 0.2, 0.1, 1.0), **{"Emission Strength": emission}))
+    _check(f"alpha 0.5 emission {emission}", *_both(scene, 128))
 
 
 def cutout_material():
