@@ -47,7 +47,11 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
       const glm::mat3 linear(inst.to_world);
       const vec3 p0 = vec3(inst.to_world * vec4(v[0], 1.0f));
       const vec3 e1 = linear * (v[1] - v[0]), e2 = linear * (v[2] - v[0]);
+      // The front is where Scene::interaction's normal (normal transform of
+      // the local normal) points; the cross product of transformed edges is
+      // that times det, so a mirroring transform would flip it.
       vec3 c = glm::cross(e1, e2);
+      if (glm::determinant(linear) < 0.0f) c = -c;
       float len = glm::length(c);
       if (!(len > 0.0f) || !std::isfinite(len) || !is_finite(p0)) continue;
       // The shadow ray's end, tested in the instance's space: as

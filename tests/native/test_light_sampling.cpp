@@ -6,9 +6,12 @@
 #include <cmath>
 #include <random>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "core/background.h"
 #include "core/lights.h"
 #include "core/sampling.h"
+#include "scene_fixtures.h"
 
 using namespace tessera;
 
@@ -189,4 +192,32 @@ TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
     }
     EXPECT_LT(sum / 4096, 1e-4) << "x " << xy.x << " y " << xy.y;
   }
+}
+
+// Regression: an emissive mesh instanced with a mirroring transform (negative
+// determinant; modern_hall has four) had its light-sampling normal from the
+// cross product of transformed edges, which flips with the determinant,
+// while shading (Scene::interaction) uses the normal transform, which does
+// not: a one-sided emitter was light-sampled as emitting from its dark side
+// (next-event estimation found nothing below a downward light; MIS left
+// only the BSDF-sampled share).
+TEST(LightSampling, MirroredEmitterEmitsFromTheSideItIsShadedWith) {
+  Scene s;
+  Material light;
+  light.emission_front = vec3(1.0f);  // one-sided
+  s.materials.push_back(light);
+  // Local winding (0, 0, -1): the front faces down; mirrored in x.
+  const mat4 mirror = glm::scale(mat4(1.0f), vec3(-1.0f, 1.0f, 1.0f));
+  fixtures::add_quad(s, {-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, 1, mirror);
+  s.commit();
+  // What shading sees: a ray from below hits the front.
+  Ray up{vec3(0.1f, 0.2f, 0.0f), vec3(0.0f, 0.0f, 1.0f)};
+  Hit hit;
+  ASSERT_TRUE(s.intersect(up, hit));
+  ASSERT_FALSE(s.interaction(up, hit).back_face);
+  // Light sampling from a floor point below must then find that light.
+  const vec3 p(0.1f, 0.2f, 0.0f), n(0.0f, 0.0f, 1.0f);
+  const Estimate e = irradiance_by_light_sampling(s.light_sampler(), p, n, 1 << 14);
+  const double exact = polygon_irradiance({{-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}}, p, n);
+  EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
 }
