@@ -49,10 +49,11 @@ vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax,
 // mis_ray_t the same way). If another such light lies nearer on that line,
 // this segment's density is kept.
 float light_pdf_from_vertex(const LightSampler& lights, const Ray& ray, float mis_t, int light, float t_light,
-                            float pdf) {
+                            float pdf, const vec3& vertex_p, const vec3& vertex_n) {
   float t, p;
   vec3 le;
-  if (lights.intersect_lights(ray.o - ray.d * mis_t, ray.d, (mis_t + t_light) * (1.0f + 1e-4f), &t, &le, &p) == light)
+  if (lights.intersect_lights(ray.o - ray.d * mis_t, ray.d, (mis_t + t_light) * (1.0f + 1e-4f), &t, &le, &p, vertex_p,
+                              vertex_n) == light)
     return p;
   return pdf;
 }
@@ -75,7 +76,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
-  vec3 prev_p(0.0f);  // the last scattering vertex: light pdfs for MIS are seen from it
+  // The last scattering vertex and its shading normal: light pdfs for MIS
+  // are those of light sampling from there.
+  vec3 prev_p(0.0f), prev_n(0.0f);
   float rr_u = 0.0f;  // Russian roulette at the next hit: its number, and whether it applies
   bool rr_pending = false;
   bool count_emission_fully = true;  // camera rays and delta bounces: no MIS
@@ -103,10 +106,10 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     if (bounce > 0) {
       float t_light, light_pdf;
       vec3 le;
-      int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf);
+      int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf, prev_p, prev_n);
       if (light >= 0) {
         if (mis_t > 0.0f && !count_emission_fully)
-          light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf);
+          light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf, prev_p, prev_n);
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
         add(bounce, beta * le * w);
       }
@@ -130,7 +133,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       float w = 1.0f;
       if (!count_emission_fully) {
         float cos_l = std::abs(glm::dot(ray.d, si.ng));
-        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(prev_p, hit.instance, hit.prim, mis_t + hit.t, cos_l));
+        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(prev_p, prev_n, hit.instance, hit.prim, mis_t + hit.t, cos_l));
       }
       add(bounce, beta * le * w);
     }
@@ -168,7 +171,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const float u_light = sampler.get_1d();
     const vec2 u_light_pos = sampler.get_2d();
     LightSample ls;
-    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, u_light, u_light_pos, ls)) {
+    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, u_light_pos, ls)) {
       vec3 f = bsdf.f(ls.wi) * std::abs(glm::dot(ls.wi, ns));
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
@@ -215,6 +218,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
     prev_bsdf_pdf = bs.pdf;
     prev_p = si.p;
+    prev_n = ns;
     count_emission_fully = bs.delta;
     mis_t = 0.0f;
     ++kind_bounces[bs.kind];

@@ -90,22 +90,77 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   lights_ = std::move(lights);
   triangles_ = std::move(triangles);
   world_ = (world && world->emits()) ? world : nullptr;
-  std::vector<float> weights;
-  weights.reserve(lights_.size() + triangles_.size() + 1);
   hittable_lights_.clear();
+  // Bounds of every bounded emitter for the BVH, with the same power
+  // estimates the first step weighs the BVH, the world and suns with.
+  std::vector<LightBounds> bounds(lights_.size() + triangles_.size());
+  std::vector<float> top_weights;
+  top_entries_.clear();
+  double bvh_power = 0.0;
   for (uint32_t i = 0; i < lights_.size(); ++i) {
     const Light& l = lights_[i];
-    weights.push_back(light_power(l, scene_radius));
+    const float power = light_power(l, scene_radius);
     if (l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f))
       hittable_lights_.push_back(i);
+    if (l.type == LightType::Sun) {
+      top_entries_.push_back(i);
+      top_weights.push_back(power);
+      continue;
+    }
+    LightBounds& b = bounds[i];
+    b.phi = power;
+    if (l.type == LightType::Area) {
+      // One-sided, emitting into the hemisphere around its direction.
+      for (float su : {-1.0f, 1.0f})
+        for (float sv : {-1.0f, 1.0f}) b.bounds.grow(l.position + su * l.axis_u + sv * l.axis_v);
+      b.w = l.direction;
+      b.cos_theta_o = 1.0f;
+      b.cos_theta_e = 0.0f;
+    } else {
+      b.bounds.grow(l.position - vec3(l.radius));
+      b.bounds.grow(l.position + vec3(l.radius));
+      if (l.type == LightType::Spot) {
+        // Emits within the cone only.
+        b.w = l.direction;
+        b.cos_theta_o = l.spot_cos;
+        b.cos_theta_e = std::cos(1e-3f);
+      } else {
+        b.cos_theta_o = -1.0f;  // every direction
+        b.cos_theta_e = 0.0f;
+      }
+    }
+    bvh_power += power;
   }
-  for (const EmissiveTriangle& t : triangles_)
-    weights.push_back(kPi * t.area * (luminance(t.le_front) + luminance(t.le_back)));
+  const uint32_t nl = uint32_t(lights_.size());
+  for (uint32_t k = 0; k < triangles_.size(); ++k) {
+    const EmissiveTriangle& t = triangles_[k];
+    LightBounds& b = bounds[nl + k];
+    const float front = luminance(t.le_front), back = luminance(t.le_back);
+    b.phi = kPi * t.area * (front + back);
+    b.bounds.grow(t.p0);
+    b.bounds.grow(t.p0 + t.e1);
+    b.bounds.grow(t.p0 + t.e2);
+    b.w = front > 0.0f ? t.n : -t.n;
+    b.two_sided = front > 0.0f && back > 0.0f;
+    b.cos_theta_o = 1.0f;
+    b.cos_theta_e = 0.0f;
+    bvh_power += b.phi;
+  }
+  bvh_.build(bounds);
+  if (!bvh_.empty()) {
+    top_entries_.push_back(kTopBVH);
+    top_weights.push_back(float(bvh_power));
+  }
   if (world_) {
-    world_entry_ = uint32_t(weights.size());
-    weights.push_back(kPi * 4.0f * kPi * scene_radius * scene_radius * world_->average_luminance());
+    top_entries_.push_back(kTopWorld);
+    top_weights.push_back(kPi * 4.0f * kPi * scene_radius * scene_radius * world_->average_luminance());
   }
-  table_ = weights.empty() ? AliasTable{} : AliasTable(weights);
+  top_ = top_weights.empty() ? AliasTable{} : AliasTable(top_weights);
+  top_bvh_pmf_ = top_world_pmf_ = 0.0f;
+  for (uint32_t i = 0; i < top_entries_.size(); ++i) {
+    if (top_entries_[i] == kTopBVH) top_bvh_pmf_ = top_.pmf(i);
+    if (top_entries_[i] == kTopWorld) top_world_pmf_ = top_.pmf(i);
+  }
   // Lookup from a hit (instance, prim) to its triangle light.
   triangle_keys_.resize(triangles_.size());
   triangle_order_.resize(triangles_.size());
@@ -115,13 +170,28 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   for (size_t i = 0; i < triangle_order_.size(); ++i) triangle_keys_[i] = key(triangle_order_[i]);
 }
 
-bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls) const {
-  if (table_.empty()) return false;
-  float pmf;
-  const uint32_t entry = table_.sample(u_select, &pmf);
+float LightSampler::selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const {
+  return top_bvh_pmf_ > 0.0f ? top_bvh_pmf_ * bvh_.pmf(p, n, entry) : 0.0f;
+}
+
+bool LightSampler::sample(const vec3& p, const vec3& n, float u_select, vec2 u, LightSample& ls) const {
+  if (top_.empty()) return false;
+  float pmf, u_rest = u_select;
+  const uint32_t top = top_entries_.size() > 1 ? top_entries_[top_.sample(u_select, &pmf, &u_rest)] : top_entries_[0];
+  if (top_entries_.size() == 1) pmf = 1.0f;
   if (pmf <= 0.0f) return false;
+  uint32_t entry = top;
+  if (top == kTopBVH) {
+    float bvh_pmf;
+    if (!bvh_.sample(p, n, u_rest, &entry, &bvh_pmf)) return false;
+    pmf *= bvh_pmf;
+  }
+  return sample_entry(entry, pmf, p, u, ls);
+}
+
+bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls) const {
   const uint32_t nl = uint32_t(lights_.size());
-  if (entry == world_entry_) {
+  if (entry == kTopWorld) {
     float pdf;
     if (!world_->sample(u, &ls.wi, &pdf)) return false;
     ls.dist = kInf;
@@ -246,34 +316,37 @@ bool LightSampler::sample(const vec3& p, float u_select, vec2 u, LightSample& ls
   }
 }
 
-float LightSampler::pdf_triangle(const vec3& p, uint32_t instance, uint32_t prim, float dist, float cos_l) const {
+float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance, uint32_t prim, float dist,
+                                 float cos_l) const {
   const uint64_t key = (uint64_t(instance) << 32) | prim;
   auto it = std::lower_bound(triangle_keys_.begin(), triangle_keys_.end(), key);
   if (it == triangle_keys_.end() || *it != key || cos_l <= 0.0f) return 0.0f;
   const uint32_t t = triangle_order_[it - triangle_keys_.begin()];
-  const float pmf = selection_pmf(uint32_t(lights_.size()) + t);
+  const float pmf = selection_pmf(uint32_t(lights_.size()) + t, p, n);
+  if (pmf <= 0.0f) return 0.0f;
   vec3 corners[3];
   const float omega = spherical_sampling_area(triangles_[t], p, corners);
   return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * triangles_[t].area);
 }
 
-float LightSampler::pdf_area(uint32_t light, float dist, float cos_l) const {
+float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
   if (cos_l <= 0.0f) return 0.0f;
-  return selection_pmf(light) * dist * dist / (cos_l * lights_[light].area);
+  return selection_pmf(light, p, n) * dist * dist / (cos_l * lights_[light].area);
 }
 
 float LightSampler::pdf_background(const vec3& wi) const {
   if (!world_) return 0.0f;
-  return selection_pmf(world_entry_) * world_->pdf(wi);
+  return top_world_pmf_ * world_->pdf(wi);
 }
 
-float LightSampler::pdf_sphere(uint32_t light, float dist, float cos_l) const {
+float LightSampler::pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
   const Light& l = lights_[light];
   if (cos_l <= 0.0f || l.radius <= 0.0f) return 0.0f;
-  return selection_pmf(light) * dist * dist / (cos_l * kPi * l.radius * l.radius);
+  return selection_pmf(light, p, n) * dist * dist / (cos_l * kPi * l.radius * l.radius);
 }
 
-int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le, float* pdf) const {
+int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le, float* pdf,
+                                   const vec3& p, const vec3& n) const {
   int best = -1;
   for (uint32_t i : hittable_lights_) {
     const Light& l = lights_[i];
@@ -291,7 +364,7 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
       best = int(i);
       *t_hit = t;
       *le = l.radiance;
-      *pdf = pdf_area(i, t, -denom);
+      *pdf = pdf_area(i, p, n, t, -denom);
     } else {
       // The disk of the light's radius facing the ray origin.
       const vec3 to_center = l.position - o;
@@ -310,7 +383,7 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
       best = int(i);
       *t_hit = t;
       *le = l.radiance * atten;
-      *pdf = pdf_sphere(i, t, -denom);
+      *pdf = pdf_sphere(i, p, n, t, -denom);
     }
   }
   return best;

@@ -1,10 +1,12 @@
-// Light sources and light sampling for next-event estimation. Blender lights
-// (point, spot, sun, area) and emissive triangles share one power-weighted
-// alias table, built only when the scene has emitters; the world is sampled
-// as one more entry when it emits. Conversions from Blender's Watts follow
-// Cycles, so that a file is as bright in both engines.
+// Light sources and light sampling for next-event estimation. A light is
+// picked in two steps: a power-weighted alias table over the light BVH (all
+// bounded emitters: point, spot and area lights, emissive triangles), the
+// world when it emits, and each sun; then, in the BVH, by the estimated
+// contribution at the shading point (light_bvh.h). Conversions from
+// Blender's Watts follow Cycles, so that a file is as bright in both engines.
 #pragma once
 #include <vector>
+#include "light_bvh.h"
 #include "material.h"
 #include "sampling.h"
 
@@ -55,37 +57,50 @@ class LightSampler {
  public:
   void build(std::vector<Light> lights, std::vector<EmissiveTriangle> triangles, const Background* world,
              float scene_radius);
-  bool empty() const { return table_.empty(); }
+  bool empty() const { return top_.empty(); }
   const std::vector<Light>& lights() const { return lights_; }
   const std::vector<EmissiveTriangle>& triangles() const { return triangles_; }
 
-  bool sample(const vec3& p, float u_select, vec2 u, LightSample& ls) const;
+  // A light sample for the shading point p with shading normal n (either
+  // side; 0 when there is none): the light is chosen by its estimated
+  // contribution there, so the same (p, n) must be given to the pdf_*
+  // functions below for MIS.
+  bool sample(const vec3& p, const vec3& n, float u_select, vec2 u, LightSample& ls) const;
 
-  // Density with which sample() from point p would have produced the
-  // direction hitting the emissive triangle (instance, prim) at distance
-  // dist with cosine cos_l.
-  float pdf_triangle(const vec3& p, uint32_t instance, uint32_t prim, float dist, float cos_l) const;
-  float pdf_area(uint32_t light, float dist, float cos_l) const;
-  // Point and spot lights with a radius, seen as the disk facing the ray origin (Cycles 3.x).
-  float pdf_sphere(uint32_t light, float dist, float cos_l) const;
+  // Densities with which sample() from (p, n) would have produced the
+  // direction hitting: the emissive triangle (instance, prim) at distance
+  // dist with cosine cos_l; area light `light`; point/spot light `light`
+  // with a radius, seen as the disk facing the ray origin (Cycles 3.x); the world.
+  float pdf_triangle(const vec3& p, const vec3& n, uint32_t instance, uint32_t prim, float dist, float cos_l) const;
+  float pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
+  float pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
   float pdf_background(const vec3& wi) const;
 
   // Nearest area light, or point/spot light with a radius, hit by the ray
   // before tmax (BSDF-sampled rays see them, so they take part in MIS);
   // returns the light index or -1, with the hit distance, radiance and the
-  // light's solid-angle pdf for MIS.
-  int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf) const;
+  // light's solid-angle pdf for MIS as sample() from (p, n) would have
+  // produced it (p: the scattering vertex the ray left).
+  int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf, const vec3& p,
+                       const vec3& n) const;
 
  private:
-  float selection_pmf(uint32_t entry) const { return table_.pmf(entry); }
+  // Probability that sample() from (p, n) picks light entry `entry` (lights,
+  // then triangles: the BVH's ids).
+  float selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const;
+  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls) const;
   std::vector<Light> lights_;
   std::vector<EmissiveTriangle> triangles_;
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
   std::vector<uint32_t> triangle_order_; // key rank -> triangle index
   std::vector<uint32_t> hittable_lights_;  // area lights, and point/spot lights with a radius
   const Background* world_ = nullptr;
-  uint32_t world_entry_ = ~0u;
-  AliasTable table_;  // entries: lights, then triangles, then the world
+  // First step: the BVH (kTopBVH), the world (kTopWorld) or a sun (its light index).
+  static constexpr uint32_t kTopBVH = ~0u, kTopWorld = ~0u - 1;
+  std::vector<uint32_t> top_entries_;
+  AliasTable top_;
+  float top_bvh_pmf_ = 0.0f, top_world_pmf_ = 0.0f;
+  LightBVH bvh_;  // over entries: lights (suns left out), then triangles
 };
 
 }  // namespace tessera

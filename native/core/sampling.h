@@ -82,13 +82,20 @@ class AliasTable {
   explicit AliasTable(const std::vector<float>& weights);
   bool empty() const { return bins_.empty(); }
   size_t size() const { return bins_.size(); }
-  // Returns an index; pmf receives its probability.
-  uint32_t sample(float u, float* pmf) const {
+  // Returns an index; pmf receives its probability and u_remapped, if
+  // given, a number uniform in [0,1) again given that index (what is left of
+  // u's bits after the choice), for a next discrete choice.
+  uint32_t sample(float u, float* pmf, float* u_remapped = nullptr) const {
     float x = u * bins_.size();
     uint32_t i = std::min(uint32_t(x), uint32_t(bins_.size() - 1));
     float frac = x - i;
-    uint32_t k = frac < bins_[i].q ? i : bins_[i].alias;
+    const bool keep = frac < bins_[i].q;
+    uint32_t k = keep ? i : bins_[i].alias;
     *pmf = bins_[k].p;
+    if (u_remapped) {
+      const float q = bins_[i].q;
+      *u_remapped = std::min(keep ? frac / q : (frac - q) / (1.0f - q), 0x1.fffffep-1f);
+    }
     return k;
   }
   float pmf(uint32_t i) const { return bins_[i].p; }

@@ -9,6 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/background.h"
+#include "core/light_bvh.h"
 #include "core/lights.h"
 #include "core/sampling.h"
 #include "scene_fixtures.h"
@@ -69,7 +70,7 @@ Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p,
   for (int i = 0; i < N; ++i) {
     LightSample s;
     double w = 0.0;
-    if (lights.sample(p, U(rng), vec2(U(rng), U(rng)), s)) {
+    if (lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s)) {
       w = s.li.x * std::max(0.0f, glm::dot(s.wi, n)) / s.pdf;
       // The triangle hit along wi (the one the point is deepest inside),
       // as the integrator finds it.
@@ -91,7 +92,7 @@ Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p,
       // Directions along the shared edge may be found in either triangle.
       if (hit >= 0 && best > 1e-4f) {
         const EmissiveTriangle& t = lights.triangles()[hit];
-        EXPECT_NEAR(lights.pdf_triangle(p, t.instance, t.prim, hit_d, hit_cos), s.pdf, 2e-3f * s.pdf) << "sample " << i;
+        EXPECT_NEAR(lights.pdf_triangle(p, n, t.instance, t.prim, hit_d, hit_cos), s.pdf, 2e-3f * s.pdf) << "sample " << i;
       }
     }
     sum += w, sum2 += w * w, max_w = std::max(max_w, w);
@@ -184,10 +185,11 @@ TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
   for (vec2 xy : {vec2(0.2f, 0.1f), vec2(-0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.1f, -0.1f), vec2(0.7f, 0.0f)}) {
     // On the light, as a ray hit would find it.
     const vec3 p = q[0] + (xy.x + 0.24f) / 0.47f * (q[3] - q[0]) + (xy.y + 0.16f) / 0.38f * (q[1] - q[0]);
+    const vec3 n(0.0f, 0.0f, -1.0f);
     double sum = 0.0;
     for (int i = 0; i < 4096; ++i) {
       LightSample s;
-      if (lights.sample(p, U(rng), vec2(U(rng), U(rng)), s))
+      if (lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s))
         sum += s.li.x * std::abs(s.wi.z) / s.pdf;  // cosine at a surface lying on the light
     }
     EXPECT_LT(sum / 4096, 1e-4) << "x " << xy.x << " y " << xy.y;
@@ -220,4 +222,111 @@ TEST(LightSampling, MirroredEmitterEmitsFromTheSideItIsShadedWith) {
   const Estimate e = irradiance_by_light_sampling(s.light_sampler(), p, n, 1 << 14);
   const double exact = polygon_irradiance({{-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}}, p, n);
   EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
+}
+
+namespace {
+
+// A grid of k x k small one-sided quad lights (0.1 wide, emitting down) in
+// the plane z = 2 over [-4, 4]^2, each as two triangles.
+LightSampler light_grid(int k, std::vector<std::vector<vec3>>* quads = nullptr) {
+  std::vector<EmissiveTriangle> tris;
+  uint32_t prim = 0;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      const float x = -4.0f + 8.0f * (i + 0.5f) / k, y = -4.0f + 8.0f * (j + 0.5f) / k, h = 0.05f;
+      // Wound so that the normal points down (-z): the front emits.
+      const std::vector<vec3> q = {{x - h, y - h, 2.0f}, {x - h, y + h, 2.0f}, {x + h, y + h, 2.0f}, {x + h, y - h, 2.0f}};
+      tris.push_back(emissive(q[0], q[1], q[2], prim++, vec3(1), vec3(0)));
+      tris.push_back(emissive(q[0], q[2], q[3], prim++, vec3(1), vec3(0)));
+      if (quads) quads->push_back(q);
+    }
+  LightSampler ls;
+  ls.build({}, tris, nullptr, 10.0f);
+  return ls;
+}
+
+}  // namespace
+
+TEST(LightBVH, PmfSumsToOneAndMatchesWhatSamplePicks) {
+  std::vector<LightBounds> lights;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (int i = 0; i < 300; ++i) {
+    LightBounds b;
+    const vec3 c(U(rng) * 10 - 5, U(rng) * 10 - 5, U(rng) * 10 - 5);
+    b.bounds.grow(c - vec3(0.1f));
+    b.bounds.grow(c + vec3(0.1f));
+    b.w = glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f));
+    b.phi = (i % 7 == 0) ? 0.0f : 0.1f + U(rng);  // some dark lights: never picked
+    b.two_sided = i % 3 == 0;
+    b.cos_theta_o = i % 5 == 0 ? -1.0f : 1.0f;
+    b.cos_theta_e = 0.0f;
+    lights.push_back(b);
+  }
+  LightBVH bvh;
+  bvh.build(lights);
+  for (int trial = 0; trial < 20; ++trial) {
+    const vec3 p(U(rng) * 12 - 6, U(rng) * 12 - 6, U(rng) * 12 - 6);
+    const vec3 n = trial % 4 == 0 ? vec3(0.0f) : glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f));
+    double total = 0.0;
+    std::vector<float> pmf(lights.size());
+    for (uint32_t i = 0; i < lights.size(); ++i) {
+      pmf[i] = bvh.pmf(p, n, i);
+      if (lights[i].phi == 0.0f) EXPECT_EQ(pmf[i], 0.0f);
+      total += pmf[i];
+    }
+    // Where a node's bounds allow light but neither child's do, the
+    // traversal stops without a light: that mass is lost, never misplaced.
+    EXPECT_LE(total, 1.0 + 1e-4);
+    EXPECT_GT(total, 0.5);
+    std::vector<int> count(lights.size(), 0);
+    const int N = 200000;
+    int none = 0;
+    for (int s = 0; s < N; ++s) {
+      uint32_t light;
+      float p_light;
+      if (!bvh.sample(p, n, (s + 0.5f) / N, &light, &p_light)) {
+        ++none;
+        continue;
+      }
+      ASSERT_NEAR(p_light, pmf[light], 1e-4f * pmf[light] + 1e-7f);
+      ++count[light];
+    }
+    EXPECT_NEAR(none / double(N), 1.0 - total, 1e-3);
+    for (uint32_t i = 0; i < lights.size(); ++i)
+      EXPECT_NEAR(count[i] / double(N), pmf[i], 4.0 * std::sqrt(pmf[i] / N) + 2.0 / N) << "light " << i;
+  }
+}
+
+// Many lights: the BVH picks the ones that matter at the point, so the
+// estimate has far less spread than choosing by power alone, and stays exact.
+TEST(LightBVH, ManyLightsAreChosenByTheirContribution) {
+  std::vector<std::vector<vec3>> quads;
+  const LightSampler lights = light_grid(16, &quads);
+  const vec3 p(1.3f, -0.7f, 1.6f), n(0.0f, 0.0f, 1.0f);
+  const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 16);
+  std::vector<double> exact;
+  double total = 0.0;
+  for (const auto& q : quads) exact.push_back(polygon_irradiance(q, p, n)), total += exact.back();
+  EXPECT_NEAR(e.mean, total, 4.0 * e.stderr_ + 1e-3 * total);
+  // Choosing each of the 256 equal quads with probability 1/256 (what a
+  // power table does) gives a per-sample second moment of 256 sum e_i^2.
+  double m2 = 0.0;
+  for (double x : exact) m2 += x * x * exact.size();
+  const double spread_power = std::sqrt(m2 - total * total) / total;
+  const double spread_bvh = e.stderr_ * std::sqrt(double(1 << 16)) / e.mean;
+  EXPECT_LT(spread_bvh, 0.5 * spread_power) << "power table " << spread_power << ", BVH " << spread_bvh;
+}
+
+// One-sided emitters never light what is behind them: the BVH does not pick
+// them from there (a power table wasted those samples).
+TEST(LightBVH, OneSidedLightsBehindThePointAreNotPicked) {
+  const LightSampler lights = light_grid(8);
+  const vec3 p(0.3f, 0.2f, 3.0f), n(0.0f, 0.0f, -1.0f);  // above the downward-facing grid
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (int i = 0; i < 1000; ++i) {
+    LightSample s;
+    EXPECT_FALSE(lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s));
+  }
 }

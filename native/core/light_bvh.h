@@ -1,0 +1,62 @@
+// Light BVH: picks one of many bounded emitters with a probability that
+// follows its estimated contribution at the shading point (Conty Estevez and
+// Kulla 2018, "Importance Sampling of Many Lights with Adaptive Tree
+// Splitting"; pbrt-v4 BVHLightSampler). Each node bounds its emitters'
+// positions (box), emission directions (a cone of normals, theta_o, widened
+// by the emission spread theta_e) and total power; a traversal from the root
+// chooses a child by the importance of its bounds at the point, so lights
+// that are far, behind the point or facing away from it are rarely or never
+// picked. pmf() retraces the same choices for MIS.
+#pragma once
+#include <vector>
+#include "aabb.h"
+
+namespace tessera {
+
+// What a node knows about the emitters below it.
+struct LightBounds {
+  AABB bounds;
+  vec3 w{0.0f, 0.0f, 1.0f};  // axis of the cone of emission normals
+  float phi = 0.0f;          // power (any common unit: only ratios matter)
+  float cos_theta_o = 1.0f;  // the normals lie within theta_o of w
+  float cos_theta_e = 0.0f;  // each point emits up to theta_e off its normal
+  bool two_sided = false;    // emits on both sides of its normals
+
+  // Conservative estimate of the light's contribution at p, for a receiver
+  // with normal n (0: any direction): power times the largest cosines the
+  // bounds allow at the emitter and the receiver, over the squared distance
+  // (pbrt-v4 LightBounds::Importance). 0 only where it cannot contribute.
+  float importance(const vec3& p, const vec3& n) const;
+};
+
+LightBounds union_bounds(const LightBounds& a, const LightBounds& b);
+
+class LightBVH {
+ public:
+  // One bounds per light; ids are the lights' indices into `lights`. Lights
+  // with zero power are left out (never sampled, pmf 0).
+  void build(const std::vector<LightBounds>& lights);
+  bool empty() const { return nodes_.empty(); }
+
+  // Picks a light for point p with normal n from u in [0,1); false when no
+  // light can contribute there.
+  bool sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf) const;
+  // Probability with which sample() picks `light` at (p, n).
+  float pmf(const vec3& p, const vec3& n, uint32_t light) const;
+  size_t node_count() const { return nodes_.size(); }
+
+ private:
+  struct Node {
+    LightBounds lb;
+    uint32_t index = 0;  // leaf: light id; interior: second child (the first is this + 1)
+    bool leaf = false;
+  };
+  uint32_t build_node(std::vector<uint32_t>& ids, size_t begin, size_t end, const std::vector<LightBounds>& lights,
+                      uint64_t trail, int depth);
+  std::vector<Node> nodes_;
+  // Per light: the path from the root, bit d set when the second child was
+  // taken at depth d (pbrt-v4's bit trail); ~0 for lights not in the tree.
+  std::vector<uint64_t> trail_;
+};
+
+}  // namespace tessera

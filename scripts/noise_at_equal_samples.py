@@ -1,0 +1,88 @@
+"""Per-sample noise of Tessera against Cycles: RMSE at equal sample counts,
+each engine against its own high-sample reference (independent of machine
+load, unlike error-against-time ladders). Run inside Blender:
+
+    blender -b --factory-startup --python scripts/noise_at_equal_samples.py -- \\
+        [--scenes veach_mis modern_hall cornell_mcguire cbox_mitsuba bunny_glass] \\
+        [--spp 16 64] [--seeds 3] [--width 120] [--ref 1024] [--bounces 8] \\
+        [--cache /tmp/tessera_noise] [--addon DIR] [--tag NAME]
+
+Per scene and sample count: sqrt of the mean over seeds 0..N-1 of the MSE
+against the reference (seed 1000), for Tessera and Cycles; Tessera's rays per
+pixel sample; image means (bias check against Cycles' reference). References
+and Cycles renders are cached in --cache (delete Tessera's references there
+after a change that moves Tessera's image mean). Prints a markdown table and
+writes CACHE/results_TAG.json."""
+import argparse
+import json
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+ap = argparse.ArgumentParser()
+ap.add_argument("--addon", default=os.path.join(HERE, "..", "addon"))
+ap.add_argument("--tag", default="run")
+ap.add_argument("--scenes", nargs="+", default=["veach_mis", "modern_hall", "cornell_mcguire", "cbox_mitsuba", "bunny_glass"])
+ap.add_argument("--spp", type=int, nargs="+", default=[16, 64])
+ap.add_argument("--seeds", type=int, default=3)
+ap.add_argument("--bounces", type=int, default=8)
+ap.add_argument("--width", type=int, default=120)
+ap.add_argument("--ref", type=int, default=1024)
+ap.add_argument("--cache", default="/tmp/tessera_noise")
+a = ap.parse_args(argv)
+sys.path.insert(0, a.addon)
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
+import tessera  # noqa: E402
+if not hasattr(bpy.types.Scene, "tessera"):
+    tessera.register()
+from tessera import engine  # noqa: E402
+from helpers import SCENES, render, set_size  # noqa: E402
+
+os.makedirs(a.cache, exist_ok=True)
+
+
+def rendered(scene_name, eng, spp, seed):
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(SCENES, scene_name + ".blend"))
+    sc = bpy.context.scene
+    set_size(sc, a.width)
+    return render(sc, eng, samples=spp, bounces=a.bounces, seed=seed)[..., :3].astype(np.float64)
+
+
+def cached(scene_name, eng, spp, seed):
+    f = os.path.join(a.cache, f"{scene_name}_{eng}_{spp}_{seed}_{a.bounces}_{a.width}.npy")
+    if not os.path.exists(f):
+        np.save(f, rendered(scene_name, eng, spp, seed))
+    return np.load(f)
+
+
+rows = []
+for s in a.scenes:
+    refs = {e: cached(s, e, a.ref, 1000) for e in ("TESSERA", "CYCLES")}
+    row = {"scene": s, "mean_ref_tessera": float(refs["TESSERA"].mean()), "mean_ref_cycles": float(refs["CYCLES"].mean())}
+    for spp in a.spp:
+        mse_t, mse_c, mean_t, rays = [], [], [], []
+        for seed in range(a.seeds):
+            im = rendered(s, "TESSERA", spp, seed)
+            st = engine.last_render_stats
+            rays.append(st["rays"] / max(1, st["pixel_samples"]))
+            mse_t.append(((im - refs["TESSERA"]) ** 2).mean())
+            mean_t.append(im.mean())
+            mse_c.append(((cached(s, "CYCLES", spp, seed) - refs["CYCLES"]) ** 2).mean())
+        row[f"tessera_{spp}"] = float(np.sqrt(np.mean(mse_t)))
+        row[f"cycles_{spp}"] = float(np.sqrt(np.mean(mse_c)))
+        row[f"rays_{spp}"] = float(np.mean(rays))
+        row[f"mean_{spp}"] = float(np.mean(mean_t))
+    rows.append(row)
+    print("ROW", json.dumps(row), flush=True)
+with open(os.path.join(a.cache, f"results_{a.tag}.json"), "w") as f:
+    json.dump(rows, f, indent=1)
+head = "| scene | " + " | ".join(f"Tessera {n} | Cycles {n}" for n in a.spp) + " | rays/sample | mean T / C ref |"
+print("\n" + head + "\n|" + "---|" * (head.count("|") - 1))
+for r in rows:
+    cells = " | ".join(f"{r[f'tessera_{n}']:.4f} | {r[f'cycles_{n}']:.4f}" for n in a.spp)
+    print(f"| {r['scene']} | {cells} | {r[f'rays_{a.spp[-1]}']:.2f} | {r[f'mean_{a.spp[-1]}'] / r['mean_ref_cycles']:.3f} |")
