@@ -186,7 +186,10 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         # Blender's render result is the border only, with or without crop (it pastes
         # the border into the full frame itself when not cropping): offset 0, 0.
         w, h = x1 - x0, y1 - y0
-        result = self.begin_result(0, 0, w, h)
+        # The result of the view layer being rendered only (Blender calls
+        # render() once per view layer; without the name, layers[0] was always
+        # the first one).
+        result = self.begin_result(0, 0, w, h, layer=depsgraph.view_layer.name)
         if result is None or (result.resolution_x, result.resolution_y) != (w, h):
             if result is not None:
                 self.end_result(result, cancel=True)

@@ -161,3 +161,26 @@ def test_colour_pass_matches_cycles(rendered, name):
     # Whole image too (edges blend the same way with the same pixel filter).
     full_o, full_r = ours[name][..., :3].reshape(-1, 3).mean(axis=0), ref[name][..., :3].reshape(-1, 3).mean(axis=0)
     assert np.all(np.abs(full_o - full_r) <= 0.05 * np.maximum(full_r, 1e-3) + 1e-4), (full_o, full_r)
+
+
+def test_each_view_layer_gets_its_own_result_and_passes():
+    # Regression: the engine wrote every view layer's render into the first
+    # layer of the result (the second layer stayed black, and a pass only the
+    # first layer had made the second render fail).
+    scene = passes_scene(24)
+    first = scene.view_layers[0]
+    first.use_pass_normal = True
+    second = scene.view_layers.new("Second")
+    second.use_pass_z = True
+    render_passes(scene, 'TESSERA', samples=2)  # sets the engine and the multilayer EXR output
+    r = scene.render
+    path = os.path.join(tempfile.mkdtemp(prefix="tessera_passes_"), "layers.exr")
+    r.filepath = path
+    bpy.ops.render.render(write_still=True)
+    try:
+        a, b = layer_passes(path, first.name), layer_passes(path, "Second")
+    finally:
+        os.remove(path)
+    assert sorted(a) == ["Combined", "Normal"] and sorted(b) == ["Combined", "Depth"], (sorted(a), sorted(b))
+    assert a["Combined"][..., :3].mean() > 0.1 and b["Combined"][..., :3].mean() > 0.1
+    assert np.allclose(a["Combined"], b["Combined"])  # the same objects, samples and seed
