@@ -2,6 +2,7 @@
 engine at a given size, samples and bounces, and read the float pixels back."""
 
 import os
+import subprocess
 import tempfile
 
 import bpy
@@ -10,6 +11,19 @@ import numpy as np
 SHARED = os.environ.get("TESSERA_SHARED",
                         os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared"))
 SCENES = os.path.join(SHARED, "scenes")
+ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "addon")
+
+
+def blender_render_frame(blend, out_dir):
+    """Renders frame 1 of a saved .blend with Tessera in a separate `blender -b`
+    process, as a farm worker would (PNG files out_dir/f_####); returns the
+    CompletedProcess. Registers this checkout's add-on unless Blender already
+    has Tessera enabled (scripts/setup.sh enables it in the user preferences)."""
+    expr = (f"import sys, bpy; sys.path.insert(0, {ADDON!r}); import tessera; "
+            f"hasattr(bpy.types.Scene, 'tessera') or tessera.register()")
+    return subprocess.run([bpy.app.binary_path, "-b", str(blend), "--python-expr", expr, "-E", "TESSERA",
+                           "-o", os.path.join(str(out_dir), "f_####"), "-F", "PNG", "-f", "1"],
+                          capture_output=True, text=True, timeout=300)
 
 
 def open_scene(name):

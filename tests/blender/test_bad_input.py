@@ -5,19 +5,14 @@ NaN or Inf pixel, and an error (so that `blender -b` exits non-zero) when
 nothing could be rendered."""
 
 import math
-import os
-import subprocess
 
 import bpy
 import numpy as np
 import pytest
 
 import tessera.engine
-from helpers import render
+from helpers import blender_render_frame, render
 from scenes import add_camera, add_plane, empty_scene, principled, set_world
-
-ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "addon")
-
 
 def lit_scene():
     """A grey plane filling the view under a white world, and a second,
@@ -172,10 +167,7 @@ def test_headless_render_of_a_broken_scene_exits_non_zero_with_the_message(tmp_p
     scene.render.resolution_x = scene.render.resolution_y = 65536
     blend = str(tmp_path / "huge.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
-    expr = f"import sys, bpy; sys.path.insert(0, {ADDON!r}); import tessera; tessera.register()"
-    proc = subprocess.run([bpy.app.binary_path, "-b", blend, "--python-expr", expr, "-E", "TESSERA",
-                           "-o", str(tmp_path / "f_####"), "-F", "PNG", "-f", "1"],
-                          capture_output=True, text=True, timeout=300)
+    proc = blender_render_frame(blend, tmp_path)
     assert proc.returncode != 0, proc.stdout
     assert "needs" in proc.stdout + proc.stderr and "GiB" in proc.stdout + proc.stderr
     assert not list(tmp_path.glob("f_*.png"))

@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 import pytest
 
-from helpers import SCENES
+from helpers import SCENES, blender_render_frame
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 ADDON = os.path.join(ROOT, "addon")
@@ -80,10 +80,7 @@ def test_failed_render_exits_non_zero(tmp_path):
     bpy.ops.mesh.primitive_cube_add()
     blend = str(tmp_path / "no_camera.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
-    expr = f"import sys, bpy; sys.path.insert(0, {ADDON!r}); import tessera; tessera.register()"
-    proc = subprocess.run([bpy.app.binary_path, "-b", blend, "--python-expr", expr, "-E", "TESSERA",
-                           "-o", str(tmp_path / "f_####"), "-F", "PNG", "-f", "1"],
-                          capture_output=True, text=True, timeout=300)
+    proc = blender_render_frame(blend, tmp_path)
     assert proc.returncode != 0, proc.stdout
     assert not list(tmp_path.glob("f_*.png")), "a failed render wrote an image"
     farm = subprocess.run([python(), REGION, blend, str(tmp_path / "out.exr"), "--size", "8x8", "--addon", ADDON],
