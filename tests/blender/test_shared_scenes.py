@@ -8,7 +8,7 @@ import pytest
 from helpers import compare, open_scene, remove_duplicate_faces, render, set_size
 
 
-# Issue 2: mean per channel within 5% of Cycles on the two Cornell boxes.
+# Issue 2 asked for 5% on the two Cornell boxes; issue 3's 2% holds (0.5% and 0.2%).
 @pytest.mark.parametrize("name", ["cornell_mcguire.blend", "cbox_mitsuba.blend"])
 def test_mean_matches_cycles(name):
     if bpy.app.version >= (4, 0, 0):
@@ -25,7 +25,7 @@ def test_mean_matches_cycles(name):
     assert np.all(np.isfinite(ours)), "Tessera wrote NaN or Inf pixels"
     c = compare(ours, ref)
     print(name, {k: np.round(v, 4) for k, v in c.items()})
-    assert np.all(c["mean_rel_diff"] < 0.05), f"{name}: mean per channel {c['mean_test']} vs Cycles {c['mean_ref']}"
+    assert np.all(c["mean_rel_diff"] < 0.02), f"{name}: mean per channel {c['mean_test']} vs Cycles {c['mean_ref']}"
 
 
 def test_duplicate_faces_render_as_one_surface():
@@ -42,8 +42,10 @@ def test_duplicate_faces_render_as_one_surface():
 
 
 # Issue 3, at the level each scene holds today (docs/compare has the full
-# table); modern_hall.blend is open (about 9% darker than Cycles, see the closing note).
-@pytest.mark.parametrize("name,bound", [("veach_mis.blend", 0.03), ("bunny_glass.blend", 0.03)])
+# table). modern_hall was 9% dark until emitters on mirrored instances were
+# light-sampled from the side they are shaded with.
+@pytest.mark.parametrize("name,bound", [("veach_mis.blend", 0.03), ("bunny_glass.blend", 0.03),
+                                        ("modern_hall.blend", 0.02)])
 def test_more_shared_scenes_match_cycles(name, bound):
     if bpy.app.version >= (4, 0, 0):
         pytest.skip("Blender 4.x's Principled BSDF is a different, energy-conserving model (principled v2); "
