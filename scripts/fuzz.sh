@@ -23,6 +23,8 @@ for src in tests/fuzz/fuzz_scene.cpp "${SRCS[@]}"; do
 done
 wait
 $CXX $FLAGS "${objs[@]}" -ltbb -o "$OUT/fuzz_scene"
+echo "tessera fuzz: replaying the inputs of past findings (tests/fuzz/crashes)"
+UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 "$OUT/fuzz_scene" tests/fuzz/crashes/* 2>&1 | tail -n 3
 echo "tessera fuzz: running for ${SECONDS_MAX} s"
 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   "$OUT/fuzz_scene" -max_total_time="$SECONDS_MAX" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \

@@ -55,6 +55,14 @@ float saoh_cost(const LightBounds& lb, const AABB& parent, int axis) {
 
 constexpr int kMaxDepth = 60;  // the bit trail has 64 bits
 
+// Bucket of a centroid coordinate c in [lo, lo + ext), clamped in float before
+// the conversion: with extents near the float range (or NaN from inf - inf)
+// the quotient is not a valid int (a fuzzer found the out-of-range bucket).
+int bucket_index(float c, float lo, float ext, int buckets) {
+  const float f = float(buckets) * (c - lo) / ext;
+  return f >= float(buckets - 1) ? buckets - 1 : f > 0.0f ? int(f) : 0;
+}
+
 }  // namespace
 
 float LightBounds::importance(const vec3& p, const vec3& n) const {
@@ -158,9 +166,7 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
       const float lo = centroids.lo[axis], ext = centroids.hi[axis] - lo;
       if (!(ext > 0.0f)) continue;
       LightBounds bucket[kBuckets];
-      auto bucket_of = [&](uint32_t id) {
-        return std::min(kBuckets - 1, int(kBuckets * (lights[id].bounds.center()[axis] - lo) / ext));
-      };
+      auto bucket_of = [&](uint32_t id) { return bucket_index(lights[id].bounds.center()[axis], lo, ext, kBuckets); };
       for (size_t i = begin; i < end; ++i) {
         const int b = bucket_of(ids[i]);
         bucket[b] = union_bounds(bucket[b], lights[ids[i]]);
@@ -177,7 +183,7 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
     if (best_axis >= 0) {
       const float lo = centroids.lo[best_axis], ext = centroids.hi[best_axis] - lo;
       auto it = std::partition(ids.begin() + begin, ids.begin() + end, [&](uint32_t id) {
-        return std::min(kBuckets - 1, int(kBuckets * (lights[id].bounds.center()[best_axis] - lo) / ext)) <= best_bucket;
+        return bucket_index(lights[id].bounds.center()[best_axis], lo, ext, kBuckets) <= best_bucket;
       });
       mid = size_t(it - ids.begin());
       split = mid > begin && mid < end;

@@ -330,3 +330,26 @@ TEST(LightBVH, OneSidedLightsBehindThePointAreNotPicked) {
     EXPECT_FALSE(lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s));
   }
 }
+
+// Regression (found by scripts/fuzz.sh): lights whose centroids span the
+// float range made the SAOH bucket index inf or NaN, converted to int out of
+// range (undefined behaviour; on x86 INT_MIN, an out-of-bounds bucket write).
+TEST(LightBVH, LightsSpanningTheFloatRangeBuild) {
+  std::vector<LightBounds> lights;
+  for (float x : {-3e38f, -1.0f, 0.0f, 1.0f, 3e38f}) {
+    LightBounds b;
+    b.bounds.grow(vec3(x, 0.0f, 0.0f));
+    b.bounds.grow(vec3(x, 1.0f, 1.0f));
+    b.phi = 1.0f;
+    b.cos_theta_o = -1.0f;
+    lights.push_back(b);
+  }
+  LightBVH bvh;
+  bvh.build(lights);
+  uint32_t light;
+  float pmf;
+  if (bvh.sample(vec3(0.5f), vec3(0.0f), 0.3f, &light, &pmf)) {
+    EXPECT_LT(light, lights.size());
+    EXPECT_TRUE(std::isfinite(pmf) && pmf > 0.0f);
+  }
+}
