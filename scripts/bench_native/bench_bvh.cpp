@@ -110,37 +110,35 @@ void embree_build(RTCDevice device, const TriangleSoup& s, EmbreeScene& es) {
   rtcCommitScene(es.scene);
 }
 
+// Ray i of the array as Embree takes it (segment [0, tmax]).
+RTCRay embree_ray(const RayArray& rays, size_t i) {
+  RTCRay r;
+  r.org_x = rays.o[i].x, r.org_y = rays.o[i].y, r.org_z = rays.o[i].z;
+  r.dir_x = rays.d[i].x, r.dir_y = rays.d[i].y, r.dir_z = rays.d[i].z;
+  r.tnear = 0.0f;
+  r.tfar = rays.tmax[i];
+  r.time = 0.0f;
+  r.mask = ~0u;
+  r.id = 0;
+  r.flags = 0;
+  return r;
+}
+
 void embree_trace(RTCScene scene, const RayArray& rays, size_t begin, size_t end, Results& out) {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   for (size_t i = begin; i < end; ++i) {
     if (rays.shadow) {
-      RTCRay r;
-      r.org_x = rays.o[i].x; r.org_y = rays.o[i].y; r.org_z = rays.o[i].z;
-      r.dir_x = rays.d[i].x; r.dir_y = rays.d[i].y; r.dir_z = rays.d[i].z;
-      r.tnear = 0.0f;
-      r.tfar = rays.tmax[i];
-      r.time = 0.0f;
-      r.mask = ~0u;
-      r.id = 0;
-      r.flags = 0;
+      RTCRay r = embree_ray(rays, i);
       rtcOccluded1(scene, &ctx, &r);
       out.t[i] = r.tfar < 0.0f ? 0.0f : kInf;
     } else {
       RTCRayHit rh;
-      RTCRay& r = rh.ray;
-      r.org_x = rays.o[i].x; r.org_y = rays.o[i].y; r.org_z = rays.o[i].z;
-      r.dir_x = rays.d[i].x; r.dir_y = rays.d[i].y; r.dir_z = rays.d[i].z;
-      r.tnear = 0.0f;
-      r.tfar = rays.tmax[i];
-      r.time = 0.0f;
-      r.mask = ~0u;
-      r.id = 0;
-      r.flags = 0;
+      rh.ray = embree_ray(rays, i);
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(scene, &ctx, &rh);
-      out.t[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? r.tfar : kInf;
+      out.t[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? rh.ray.tfar : kInf;
     }
   }
 }

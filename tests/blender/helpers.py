@@ -39,8 +39,10 @@ def set_size(scene, width, height=None):
     r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
 
 
-def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
-    """Renders the scene's camera view; returns float32 (H, W, 4), rows top to bottom."""
+def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0):
+    """Sets the engine and the settings both engines share (samples, bounces,
+    seed, threads); Cycles without denoising, adaptive sampling, clamping or
+    glossy blur, so that both estimate the same image."""
     r = scene.render
     r.engine = engine
     if engine == 'CYCLES':
@@ -64,6 +66,12 @@ def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
     else:
         t = scene.tessera
         t.samples, t.max_bounces, t.seed, t.threads = samples, bounces, seed, threads
+
+
+def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
+    """Renders the scene's camera view; returns float32 (H, W, 4), rows top to bottom."""
+    configure_engine(scene, engine, samples, bounces, seed, threads)
+    r = scene.render
     r.image_settings.file_format = 'OPEN_EXR'
     r.image_settings.color_depth = '32'
     r.use_compositing = False

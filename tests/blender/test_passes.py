@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from exr import layer_passes
+from helpers import configure_engine
 from scenes import add_camera, add_plane, empty_scene, principled, set_world
 
 # Blender 5.0 renamed DiffCol and Emit.
@@ -49,16 +50,8 @@ def enable_passes(scene, on=True):
 
 def render_passes(scene, engine, samples=16):
     """Renders into a multilayer EXR and returns {pass name: (H, W, C)}, rows top to bottom."""
+    configure_engine(scene, engine, samples=samples, bounces=2)
     r = scene.render
-    r.engine = engine
-    if engine == 'CYCLES':
-        scene.cycles.device = 'CPU'
-        scene.cycles.samples = samples
-        scene.cycles.use_denoising = False
-        scene.cycles.use_adaptive_sampling = False
-        scene.cycles.max_bounces = 2
-    else:
-        scene.tessera.samples, scene.tessera.max_bounces = samples, 2
     if hasattr(r.image_settings, "media_type"):  # Blender 5.0 lists multilayer EXR under its own media type
         r.image_settings.media_type = 'MULTI_LAYER_IMAGE'
     r.image_settings.file_format = 'OPEN_EXR_MULTILAYER'
