@@ -17,12 +17,11 @@ inline uint32_t hash_u32(uint32_t x) {  // "lowbias32" (Wellons 2018)
 }
 inline uint32_t hash_combine(uint32_t seed, uint32_t v) { return hash_u32(seed ^ (v + 0x9e3779b9U + (seed << 6) + (seed >> 2))); }
 
-inline uint32_t reverse_bits(uint32_t x) {
-  x = ((x >> 1) & 0x55555555U) | ((x & 0x55555555U) << 1);
-  x = ((x >> 2) & 0x33333333U) | ((x & 0x33333333U) << 2);
+inline uint32_t reverse_bits(uint32_t x) {  // bytes swapped, then nibbles, pairs and bits
+  x = __builtin_bswap32(x);
   x = ((x >> 4) & 0x0f0f0f0fU) | ((x & 0x0f0f0f0fU) << 4);
-  x = ((x >> 8) & 0x00ff00ffU) | ((x & 0x00ff00ffU) << 8);
-  return (x >> 16) | (x << 16);
+  x = ((x >> 2) & 0x33333333U) | ((x & 0x33333333U) << 2);
+  return ((x >> 1) & 0x55555555U) | ((x & 0x55555555U) << 1);
 }
 
 // Laine-Karras style permutation with Burley's improved constants.
@@ -39,16 +38,34 @@ inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
 }
 
 // The first two Sobol dimensions: van der Corput, and the dimension whose
-// direction numbers are v_i = v_{i-1} ^ (v_{i-1} >> 1).
+// direction numbers are v_i = v_{i-1} ^ (v_{i-1} >> 1). The second is linear
+// over GF(2) in the index bits, so it is the XOR of one table entry per index
+// byte (4 KiB, built at compile time): the scrambled indices use all 32 bits,
+// and the bit-serial loop cost 32 steps per value.
 inline uint32_t sobol_dim0(uint32_t index) { return reverse_bits(index); }
-inline uint32_t sobol_dim1(uint32_t index) {
+constexpr uint32_t sobol_dim1_serial(uint32_t index, int first_bit = 0) {
   uint32_t x = 0, v = 0x80000000U;
+  for (int i = 0; i < first_bit; ++i) v ^= v >> 1;
   for (; index; index >>= 1, v ^= v >> 1)
     if (index & 1U) x ^= v;
   return x;
 }
+struct SobolDim1Table {
+  uint32_t byte[4][256];
+  constexpr SobolDim1Table() : byte{} {
+    for (int k = 0; k < 4; ++k)
+      for (uint32_t b = 0; b < 256; ++b) byte[k][b] = sobol_dim1_serial(b, 8 * k);
+  }
+};
+inline constexpr SobolDim1Table kSobolDim1{};
+inline uint32_t sobol_dim1(uint32_t index) {
+  return kSobolDim1.byte[0][index & 255U] ^ kSobolDim1.byte[1][(index >> 8) & 255U] ^
+         kSobolDim1.byte[2][(index >> 16) & 255U] ^ kSobolDim1.byte[3][index >> 24];
+}
 
-inline float u32_to_unit_float(uint32_t x) { return std::min(float(x) * 0x1p-32f, 0x1.fffffep-1f); }
+// The top 24 bits, exactly: rounding all 32 to a float could carry a value
+// across a stratum's edge (or to 1), breaking the points' stratification.
+inline float u32_to_unit_float(uint32_t x) { return float(x >> 8) * 0x1p-24f; }
 
 // Stream for one (pixel, sample): dimension pairs are drawn in order, each
 // pair decorrelated from the others by its own scrambling seed.
@@ -63,14 +80,15 @@ struct Sampler {
   vec2 get_2d() {
     const uint32_t s = hash_combine(pixel_seed, dimension++);
     const uint32_t index = nested_uniform_scramble(sample, s);
-    const uint32_t x = nested_uniform_scramble(sobol_dim0(index), hash_combine(s, 1));
+    // nested_uniform_scramble(sobol_dim0(index)), its two bit reversals cancelled.
+    const uint32_t x = reverse_bits(laine_karras_permutation(index, hash_combine(s, 1)));
     const uint32_t y = nested_uniform_scramble(sobol_dim1(index), hash_combine(s, 2));
     return vec2(u32_to_unit_float(x), u32_to_unit_float(y));
   }
   float get_1d() {
     const uint32_t s = hash_combine(pixel_seed, dimension++);
     const uint32_t index = nested_uniform_scramble(sample, s);
-    return u32_to_unit_float(nested_uniform_scramble(sobol_dim0(index), hash_combine(s, 1)));
+    return u32_to_unit_float(reverse_bits(laine_karras_permutation(index, hash_combine(s, 1))));
   }
 };
 

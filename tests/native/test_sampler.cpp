@@ -1,0 +1,46 @@
+// The per-(pixel, sample) sampler: its Sobol dimensions and the net property
+// the Owen scrambling must keep.
+#include <gtest/gtest.h>
+
+#include "core/sampler.h"
+
+using namespace tessera;
+
+TEST(Sampler, SobolDim1TableEqualsTheBitSerialConstruction) {
+  uint32_t x = 12345;
+  for (int i = 0; i < 200000; ++i) {
+    x = hash_u32(x + uint32_t(i));
+    ASSERT_EQ(sobol_dim1(x), sobol_dim1_serial(x)) << "index " << x;
+  }
+  for (uint32_t i = 0; i < 4096; ++i) ASSERT_EQ(sobol_dim1(i), sobol_dim1_serial(i));
+  EXPECT_EQ(sobol_dim1(0xffffffffU), sobol_dim1_serial(0xffffffffU));
+}
+
+// The first 2^m samples of every dimension pair of a pixel form a (0, m, 2)-net:
+// each of the 2^m elementary intervals of every shape (2^k by 2^(m-k) cells)
+// holds exactly one point (Burley 2020: shuffled and scrambled Sobol keeps it).
+TEST(Sampler, EveryDimensionPairIsANetOverPowerOfTwoSampleCounts) {
+  for (int m : {4, 6, 8}) {
+    const uint32_t n = 1U << m;
+    for (uint32_t pixel = 0; pixel < 3; ++pixel) {
+      for (int pair = 0; pair < 6; ++pair) {
+        std::vector<vec2> points;
+        for (uint32_t s = 0; s < n; ++s) {
+          Sampler sampler(pixel, 7, s, 99);
+          vec2 u(0.0f);
+          for (int d = 0; d <= pair; ++d) u = sampler.get_2d();
+          ASSERT_GE(u.x, 0.0f);
+          ASSERT_LT(u.x, 1.0f);
+          points.push_back(u);
+        }
+        for (int k = 0; k <= m; ++k) {
+          const uint32_t nx = 1U << k, ny = n >> k;
+          std::vector<int> cells(n, 0);
+          for (const vec2& p : points) ++cells[uint32_t(p.y * ny) * nx + uint32_t(p.x * nx)];
+          for (uint32_t c = 0; c < n; ++c)
+            ASSERT_EQ(cells[c], 1) << "m=" << m << " pair " << pair << " shape " << nx << "x" << ny;
+        }
+      }
+    }
+  }
+}
