@@ -211,33 +211,42 @@ struct SSEBox {
 
 constexpr int kMaxFastBins = 256;
 
+// Bins stored bin-major (Embree's BinInfo): the three axes' boxes of a bin are
+// next to each other and the three counts form one vector, so the SAH sweep
+// evaluates all three axes at once.
 struct Bins {
   int n = 0;
-  __m128 lo[3][kMaxFastBins], hi[3][kMaxFastBins];  // only the first n are initialised
-  uint32_t count[3][kMaxFastBins];
+  __m128 lo[kMaxFastBins][3], hi[kMaxFastBins][3];  // only the first n are initialised
+  alignas(16) uint32_t count[kMaxFastBins][4];
   explicit Bins(int nb) : n(nb) {
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < n; ++b) lo[a][b] = _mm_set1_ps(kInf), hi[a][b] = _mm_set1_ps(-kInf), count[a][b] = 0;
+    for (int b = 0; b < n; ++b) {
+      for (int a = 0; a < 3; ++a) lo[b][a] = _mm_set1_ps(kInf), hi[b][a] = _mm_set1_ps(-kInf);
+      _mm_store_si128(reinterpret_cast<__m128i*>(count[b]), _mm_setzero_si128());
+    }
   }
   void grow(int a, int b, __m128 l, __m128 h) {
-    lo[a][b] = _mm_min_ps(lo[a][b], l);
-    hi[a][b] = _mm_max_ps(hi[a][b], h);
-    count[a][b]++;
+    lo[b][a] = _mm_min_ps(lo[b][a], l);
+    hi[b][a] = _mm_max_ps(hi[b][a], h);
+    count[b][a]++;
   }
-  SSEBox box(int a, int b) const {
-    SSEBox x;
-    x.lo = lo[a][b], x.hi = hi[a][b];
-    return x;
-  }
+  __m128i counts(int b) const { return _mm_load_si128(reinterpret_cast<const __m128i*>(count[b])); }
   void merge(const Bins& o) {
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < n; ++b) {
-        lo[a][b] = _mm_min_ps(lo[a][b], o.lo[a][b]);
-        hi[a][b] = _mm_max_ps(hi[a][b], o.hi[a][b]);
-        count[a][b] += o.count[a][b];
-      }
+    for (int b = 0; b < n; ++b) {
+      for (int a = 0; a < 3; ++a) lo[b][a] = _mm_min_ps(lo[b][a], o.lo[b][a]), hi[b][a] = _mm_max_ps(hi[b][a], o.hi[b][a]);
+      _mm_store_si128(reinterpret_cast<__m128i*>(count[b]), _mm_add_epi32(counts(b), o.counts(b)));
+    }
   }
 };
+
+// Half areas of three boxes (one per axis sweep) as one vector: the boxes'
+// extents transposed, then e.x*e.y + e.y*e.z + e.z*e.x per lane (the order
+// of AABB::half_area, so the costs are those of the scalar sweep).
+inline __m128 half_areas3(const SSEBox* b) {
+  __m128 e0 = _mm_sub_ps(b[0].hi, b[0].lo), e1 = _mm_sub_ps(b[1].hi, b[1].lo), e2 = _mm_sub_ps(b[2].hi, b[2].lo);
+  __m128 e3 = _mm_setzero_ps();
+  _MM_TRANSPOSE4_PS(e0, e1, e2, e3);  // e0 = x extents of the three boxes, e1 = y, e2 = z
+  return _mm_add_ps(_mm_add_ps(_mm_mul_ps(e0, e1), _mm_mul_ps(e1, e2)), _mm_mul_ps(e2, e0));
+}
 
 struct FastBuilder {
   const BuildOptions& opt;
@@ -251,25 +260,43 @@ struct FastBuilder {
       : opt(o), block(uint32_t(std::max(1, o.sah_block_size))), nb(std::clamp(o.bins, 2, kMaxFastBins)) {}
 
   float blocks(uint32_t n) const { return float((n + block - 1) / block); }
+  // blocks() of four counts: exact for power-of-two blocks (1/block is exact) below 2^24 references.
+  __m128 blocks4(__m128i n) const {
+    const __m128 x = _mm_cvtepi32_ps(_mm_add_epi32(n, _mm_set1_epi32(int(block - 1))));
+    return _mm_cvtepi32_ps(_mm_cvttps_epi32(_mm_mul_ps(x, _mm_set1_ps(1.0f / float(block)))));
+  }
 
-  // Centroids are handled doubled (lo + hi) throughout.
+  // Bin indices of a reference on the three axes (centroids are handled
+  // doubled, lo + hi, throughout), clamped to [0, maxb].
+  static __m128i bin_of(const PrimRef& r, __m128 cmin, __m128 scale, __m128i maxb) {
+    __m128i b = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(centroid2(r), cmin), scale));
+    b = _mm_and_si128(b, _mm_cmpgt_epi32(b, _mm_setzero_si128()));  // min(max(b, 0), nb - 1) with SSE2
+    const __m128i gt = _mm_cmpgt_epi32(b, maxb);
+    return _mm_or_si128(_mm_and_si128(gt, maxb), _mm_andnot_si128(gt, b));
+  }
+
+  static void bin_one(Bins& bins, const PrimRef& r, __m128 cmin, __m128 scale, __m128i maxb) {
+    const __m128i b = bin_of(r, cmin, scale, maxb);
+    const __m128 l = lo_of(r);
+    bins.grow(0, _mm_cvtsi128_si32(b), l, r.hi);
+    bins.grow(1, _mm_cvtsi128_si32(_mm_shuffle_epi32(b, 1)), l, r.hi);
+    bins.grow(2, _mm_cvtsi128_si32(_mm_shuffle_epi32(b, 2)), l, r.hi);
+  }
+  // Neighbouring references mostly fall into the same bin, so every update
+  // waits for the previous one's store; large ranges alternate between two
+  // bin sets to halve that chain, then merge them.
   void bin_range(Bins& bins, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
     const __m128i maxb = _mm_set1_epi32(bins.n - 1);
-    for (uint32_t i = begin; i < end; ++i) {
-      const PrimRef& r = refs[i];
-      const __m128 c = centroid2(r);
-      __m128i b = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(c, cmin), scale));
-      // min(max(b, 0), nb - 1) with SSE2 compares
-      b = _mm_and_si128(b, _mm_cmpgt_epi32(b, _mm_setzero_si128()));
-      const __m128i gt = _mm_cmpgt_epi32(b, maxb);
-      b = _mm_or_si128(_mm_and_si128(gt, maxb), _mm_andnot_si128(gt, b));
-      alignas(16) int bi[4];
-      _mm_store_si128(reinterpret_cast<__m128i*>(bi), b);
-      const __m128 l = lo_of(r);
-      bins.grow(0, bi[0], l, r.hi);
-      bins.grow(1, bi[1], l, r.hi);
-      bins.grow(2, bi[2], l, r.hi);
+    uint32_t i = begin;
+    if (end - begin >= 256) {
+      Bins odd(bins.n);
+      for (; i + 1 < end; i += 2) {
+        bin_one(bins, refs[i], cmin, scale, maxb);
+        bin_one(odd, refs[i + 1], cmin, scale, maxb);
+      }
+      bins.merge(odd);
     }
+    for (; i < end; ++i) bin_one(bins, refs[i], cmin, scale, maxb);
   }
 
   Split find_split(uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out, __m128& scale_out) const {
@@ -297,28 +324,43 @@ struct FastBuilder {
     } else {
       bin_range(bins, begin, end, cmin, scale);
     }
-    for (int axis = 0; axis < 3; ++axis) {
-      if (!(e[axis] > 0.0f)) continue;
-      float right_area[kMaxFastBins];
-      uint32_t right_count[kMaxFastBins];
-      SSEBox acc;
-      uint32_t cnt = 0;
-      for (int b = nb - 1; b > 0; --b) {
-        acc.grow(bins.box(axis, b));
-        cnt += bins.count[axis][b];
-        right_area[b] = acc.half_area();
-        right_count[b] = cnt;
-      }
-      acc = SSEBox{};
-      cnt = 0;
-      for (int b = 0; b < nb - 1; ++b) {
-        acc.grow(bins.box(axis, b));
-        cnt += bins.count[axis][b];
-        if (cnt == 0 || right_count[b + 1] == 0) continue;
-        const float cost = acc.half_area() * blocks(cnt) + right_area[b + 1] * blocks(right_count[b + 1]);
-        if (cost < best.cost) best = {axis, 0.0f, uint32_t(b + 1), cost};  // index: first bin on the right
-      }
+    // Sweep all three axes at once: right-to-left areas and block counts,
+    // then left to right; per axis the first bin of least cost wins (strict <,
+    // as a scalar sweep axis by axis), then the lowest axis on equal cost.
+    alignas(16) __m128 right_area[kMaxFastBins], right_blocks[kMaxFastBins];
+    __m128i right_nonempty[kMaxFastBins];
+    SSEBox acc[3];
+    __m128i cnt = _mm_setzero_si128();
+    for (int b = nb - 1; b > 0; --b) {
+      for (int a = 0; a < 3; ++a) acc[a].grow(bins.lo[b][a], bins.hi[b][a]);
+      cnt = _mm_add_epi32(cnt, bins.counts(b));
+      right_area[b] = half_areas3(acc);
+      right_blocks[b] = blocks4(cnt);
+      right_nonempty[b] = _mm_cmpgt_epi32(cnt, _mm_setzero_si128());
     }
+    for (SSEBox& x : acc) x = SSEBox{};
+    cnt = _mm_setzero_si128();
+    // Axes without extent are never split (cost stays inf).
+    const __m128i axis_ok = _mm_castps_si128(_mm_cmpgt_ps(ext, _mm_setzero_ps()));
+    __m128 best_cost = _mm_set1_ps(kInf);
+    __m128i best_bin = _mm_setzero_si128();
+    for (int b = 0; b < nb - 1; ++b) {
+      for (int a = 0; a < 3; ++a) acc[a].grow(bins.lo[b][a], bins.hi[b][a]);
+      cnt = _mm_add_epi32(cnt, bins.counts(b));
+      const __m128 cost = _mm_add_ps(_mm_mul_ps(half_areas3(acc), blocks4(cnt)),
+                                     _mm_mul_ps(right_area[b + 1], right_blocks[b + 1]));
+      const __m128i ok = _mm_and_si128(_mm_and_si128(_mm_cmpgt_epi32(cnt, _mm_setzero_si128()), right_nonempty[b + 1]), axis_ok);
+      const __m128 better = _mm_and_ps(_mm_castsi128_ps(ok), _mm_cmplt_ps(cost, best_cost));
+      best_cost = _mm_or_ps(_mm_and_ps(better, cost), _mm_andnot_ps(better, best_cost));
+      const __m128i bb = _mm_castps_si128(better);
+      best_bin = _mm_or_si128(_mm_and_si128(bb, _mm_set1_epi32(b + 1)), _mm_andnot_si128(bb, best_bin));
+    }
+    alignas(16) float bc[4];
+    alignas(16) int bi[4];
+    _mm_store_ps(bc, best_cost);
+    _mm_store_si128(reinterpret_cast<__m128i*>(bi), best_bin);
+    for (int axis = 0; axis < 3; ++axis)
+      if (bc[axis] < best.cost) best = {axis, 0.0f, uint32_t(bi[axis]), bc[axis]};  // index: first bin on the right
     return best;
   }
 
@@ -398,6 +440,11 @@ struct FastBuilder {
     uint32_t mid = begin;
     SSEBox lbox, rbox, lcbox, rcbox;
     bool have_boxes = false;
+    // At most one block that fits a leaf: a split costs the traversal step
+    // plus at least the children's triangles, never less than the leaf, so
+    // the SAH would make it a leaf anyway; skip the binning.
+    if (n <= block && n <= uint32_t(opt.max_leaf_size) && opt.traversal_cost >= opt.intersection_cost)
+      return make_leaf(node, begin, end);
     if (depth >= kMaxSAHDepth) {
       if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, begin, end);
     } else {
@@ -409,18 +456,12 @@ struct FastBuilder {
       if (n <= uint32_t(opt.max_leaf_size) && (leaf_cost <= split_cost || split.axis < 0))
         return make_leaf(node, begin, end);
       if (split.axis >= 0) {
-        alignas(16) float cm[4], sc[4];
-        _mm_store_ps(cm, cmin);
-        _mm_store_ps(sc, scale);
-        const int axis = split.axis;
-        const int pivot = int(split.index);
-        const int maxb = nb - 1;
+        // The binning's own arithmetic, on the split axis only.
+        const __m128i pivot = _mm_set1_epi32(int(split.index));
+        const int axis_bit = 1 << split.axis;
         auto left_of = [&](const PrimRef& r) {
-          alignas(16) float c[4];
-          _mm_store_ps(c, centroid2(r));
-          int bi = int((c[axis] - cm[axis]) * sc[axis]);
-          bi = std::min(std::max(bi, 0), maxb);
-          return bi < pivot;
+          const __m128i bi = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(centroid2(r), cmin), scale));
+          return (_mm_movemask_ps(_mm_castsi128_ps(_mm_cmplt_epi32(bi, pivot))) & axis_bit) != 0;
         };
         if (opt.parallel && n > kParallelPartition) {
           mid = parallel_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
