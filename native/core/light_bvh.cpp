@@ -206,7 +206,10 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
   if (nodes_.empty()) return false;
   uint32_t node = 0;
   float prob = 1.0f;
-  if (!(nodes_[0].lb.importance(p, n) > 0.0f)) return false;
+  // A lone light is picked only where it can contribute; below an interior
+  // root the children's importances decide (pbrt-v4), so the root's own
+  // importance is not evaluated.
+  if (nodes_[0].leaf && !(nodes_[0].lb.importance(p, n) > 0.0f)) return false;
   while (!nodes_[node].leaf) {
     const uint32_t c0 = node + 1, c1 = nodes_[node].index;
     const float i0 = nodes_[c0].lb.importance(p, n), i1 = nodes_[c1].lb.importance(p, n);
@@ -226,7 +229,7 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
 
 float LightBVH::pmf(const vec3& p, const vec3& n, uint32_t light) const {
   if (light >= trail_.size() || trail_[light] == ~uint64_t(0)) return 0.0f;
-  if (!(nodes_[0].lb.importance(p, n) > 0.0f)) return 0.0f;
+  if (nodes_[0].leaf && !(nodes_[0].lb.importance(p, n) > 0.0f)) return 0.0f;
   uint64_t trail = trail_[light];
   uint32_t node = 0;
   float prob = 1.0f;

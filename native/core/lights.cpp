@@ -208,7 +208,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     float dist2;
     if (omega > 0.0f) {
       vec3 w;
-      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], u, &w)) return false;
+      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w)) return false;
       // Where the sampled direction meets the triangle's plane.
       const float denom = glm::dot(w, t.n);
       const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;

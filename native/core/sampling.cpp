@@ -2,36 +2,31 @@
 
 namespace tessera {
 
-namespace {
-using dvec3 = glm::dvec3;
-// Angle between unit vectors, accurate near 0 and pi (pbrt-v4 AngleBetween).
-double angle_between(const dvec3& v1, const dvec3& v2) {
-  if (glm::dot(v1, v2) < 0.0) return M_PI - 2.0 * std::asin(std::min(1.0, glm::length(v1 + v2) / 2.0));
-  return 2.0 * std::asin(std::min(1.0, glm::length(v2 - v1) / 2.0));
-}
-}  // namespace
-
-bool sample_spherical_triangle(const vec3& a_, const vec3& b_, const vec3& c_, vec2 u, vec3* w) {
+bool sample_spherical_triangle(const vec3& a_, const vec3& b_, const vec3& c_, float area, vec2 u, vec3* w) {
+  using dvec3 = glm::dvec3;
   // In double: for a point almost in the triangle's plane the corners are
   // almost on one great circle, and in float the construction falls apart
   // (light lost next to a quad light 1e-5 of its size away).
+  if (!(area > 0.0f)) return false;
   const dvec3 a = glm::normalize(dvec3(a_)), b = glm::normalize(dvec3(b_)), c = glm::normalize(dvec3(c_));
-  // Normals of the great circles through each pair of corners.
-  dvec3 n_ab = glm::cross(a, b), n_bc = glm::cross(b, c), n_ca = glm::cross(c, a);
-  if (glm::dot(n_ab, n_ab) == 0.0 || glm::dot(n_bc, n_bc) == 0.0 || glm::dot(n_ca, n_ca) == 0.0) return false;
-  n_ab = glm::normalize(n_ab), n_bc = glm::normalize(n_bc), n_ca = glm::normalize(n_ca);
-  // Interior angles at a, b, c; the area is their excess over pi.
-  const double alpha = angle_between(n_ab, -n_ca);
-  const double beta = angle_between(n_bc, -n_ab);
-  const double gamma_ = angle_between(n_ca, -n_bc);
-  const double area_plus_pi = alpha + beta + gamma_;
-  if (!(area_plus_pi > M_PI)) return false;
-  // Sub-triangle (a, b, c') of area u.x * area: Arvo's closed form for the
-  // cosine of the arc from a to c' (pbrt-v4 A.5.5, phi = A' - alpha).
-  const double ap_pi = M_PI + u.x * (area_plus_pi - M_PI);
-  const double cos_alpha = std::cos(alpha), sin_alpha = std::sin(alpha);
-  const double sin_phi = std::sin(ap_pi) * cos_alpha - std::cos(ap_pi) * sin_alpha;
-  const double cos_phi = std::cos(ap_pi) * cos_alpha + std::sin(ap_pi) * sin_alpha;
+  // Normals of the great circles through a and b, and through c and a.
+  dvec3 n_ab = glm::cross(a, b), n_ca = glm::cross(c, a);
+  const double l_ab = glm::length(n_ab), l_ca = glm::length(n_ca);
+  if (!(l_ab > 0.0 && l_ca > 0.0)) return false;
+  n_ab /= l_ab, n_ca /= l_ca;
+  // The interior angle alpha at a, between those circles, as its cosine and
+  // sine (the sine from the cross product stays accurate for thin corners,
+  // where acos of the dot product would not).
+  const double cos_alpha = std::clamp(-glm::dot(n_ab, n_ca), -1.0, 1.0);
+  const double sin_alpha = glm::length(glm::cross(n_ab, n_ca));
+  if (!(sin_alpha > 0.0)) return false;
+  // Sub-triangle (a, b, c') of area A' = u.x * area: Arvo's closed form for
+  // the cosine of the arc from a to c' (pbrt-v4 A.5.5 with phi = A' + pi -
+  // alpha, its sine and cosine expanded so that only A' needs a sincos).
+  const double a_sub = double(u.x) * double(area);
+  const double sin_a = std::sin(a_sub), cos_a = std::cos(a_sub);
+  const double sin_phi = cos_a * sin_alpha - sin_a * cos_alpha;
+  const double cos_phi = -cos_a * cos_alpha - sin_a * sin_alpha;
   const double k1 = cos_phi + cos_alpha;
   const double k2 = sin_phi - sin_alpha * glm::dot(a, b);
   double cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / ((k2 * sin_phi + k1 * cos_phi) * sin_alpha);

@@ -116,7 +116,7 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
   double sum = 0.0, sum2 = 0.0;
   for (int i = 0; i < N; ++i) {
     vec3 w;
-    ASSERT_TRUE(sample_spherical_triangle(a, b, c, vec2(U(rng), U(rng)), &w));
+    ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(U(rng), U(rng)), &w));
     EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
     // Inside the triangle: on the inner side of all three great circles.
     EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
@@ -134,6 +134,13 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
     return std::acos(glm::dot(glm::normalize(glm::cross(x, y)), glm::normalize(glm::cross(x, z))));
   };
   EXPECT_NEAR(omega, corner(A, B, C) + corner(B, C, A) + corner(C, A, B) - M_PI, 1e-5);
+  // u.x alone: with u.y = 1 the sample is the corner c' of the sub-triangle
+  // (a, b, c'), whose solid angle must be u.x times the whole.
+  for (float ux : {0.05f, 0.25f, 0.5f, 0.75f, 0.95f}) {
+    vec3 cp;
+    ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(ux, 1.0f), &cp));
+    EXPECT_NEAR(spherical_triangle_area(a, b, cp), ux * omega, 2e-5 * omega) << "u.x " << ux;
+  }
 }
 
 // Close to a large emitter (a ceiling 1 mm above a quad light, as in
