@@ -103,6 +103,7 @@ def render_options(settings, region):
     opt.adaptive_min_samples = settings.adaptive_min_samples
     opt.time_limit = settings.time_limit
     opt.error_target = settings.error_target
+    opt.estimate_error = settings.estimate_error
     opt.seed = settings.seed
     opt.threads = settings.threads
     opt.tile_size = settings.tile_size
@@ -226,7 +227,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                    f"render {rs['seconds']:.3f} s, {stats['triangles']} triangles "
                    f"({stats['instanced_triangles']} instanced, {stats['instances']} instances), "
                    f"{pixel_samples_per_s / 1e6:.3f} Msamples/s, {rays_per_s / 1e6:.2f} Mrays/s, "
-                   f"estimated error {100 * rs['estimated_error']:.2f}%")
+                   + (f"estimated error {100 * rs['estimated_error']:.2f}%" if rs["estimated_error"] > 0
+                      else "error not estimated (Estimate Error is off)"))
         if rs["invalid_samples"]:
             summary += f", {rs['invalid_samples']} NaN/Inf samples discarded"
         print(summary)

@@ -59,6 +59,11 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         name="Error Target", description="Stop when the estimated relative RMSE of the whole image is below this "
         "(e.g. 0.02 = 2%); 0 disables",
         default=0.0, min=0.0, max=1.0, precision=4, step=0.1)
+    estimate_error: BoolProperty(
+        name="Estimate Error", description="Estimate the image's error for the status line and the render log: a "
+        "sparse grid of pixels (1/16 of a small image, 1/256 of a 1080p frame) also renders an independent "
+        "replicate of its samples. Always on with an Error Target",
+        default=True)
     max_bounces: IntProperty(
         name="Total", description="Total maximum number of bounces; 0 renders direct light only",
         default=8, min=0, max=1024)

@@ -42,6 +42,9 @@ class TESSERA_PT_sampling(TesseraPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(settings, "time_limit")
         col.prop(settings, "error_target")
+        sub = col.column(align=True)
+        sub.active = settings.error_target == 0
+        sub.prop(settings, "estimate_error")
         layout.prop(settings, "filter_width")
 
 

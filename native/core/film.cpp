@@ -41,18 +41,31 @@ float PixelFilter::warp(float u) const {
 
 namespace tessera {
 
-void Film::resize(size_t n) {
+void Film::resize(int width, int height, bool estimate_error) {
+  const size_t n = size_t(width) * size_t(height);
+  width_ = width;
   sum_.assign(n, vec3(0.0f));
-  sum_odd_.assign(n, vec3(0.0f));
+  sum_a_.assign(n, vec3(0.0f));
   count_.assign(n, 0);
   active_.assign(n, 1);
+  // The widest grid that still has kMinReplicatePixels pixels (all pixels
+  // of a small image): a 1080p frame replicates 1/256 of its pixels, 120 x
+  // 120 pixels 1/16.
+  stride_ = 1;
+  while (stride_ < kMaxReplicateStride &&
+         size_t((width + 2 * stride_ - 1) / (2 * stride_)) * ((height + 2 * stride_ - 1) / (2 * stride_)) >=
+             size_t(kMinReplicatePixels))
+    stride_ *= 2;
+  replicate_columns_ = (width + stride_ - 1) / stride_;
+  replicate_sum_.assign(estimate_error ? size_t(replicate_columns_) * ((height + stride_ - 1) / stride_) : 0,
+                        vec3(0.0f));
 }
 
 float Film::pixel_error(size_t i) const {
   const int n = count_[i];
-  const int n_odd = n / 2;
-  if (n_odd == 0) return kInf;
-  const vec3 full = sum_[i] / float(n), half = sum_odd_[i] / float(n_odd);
+  const int n_a = class_a_count(n);
+  if (n_a == 0) return kInf;
+  const vec3 full = sum_[i] / float(n), half = sum_a_[i] / float(n_a);
   const vec3 d = glm::abs(full - half);
   const float norm = std::sqrt(std::max(0.0f, full.x + full.y + full.z));
   return (d.x + d.y + d.z) / (1e-4f + norm);
@@ -60,22 +73,33 @@ float Film::pixel_error(size_t i) const {
 
 vec3 Film::mean_variance(size_t i) const {
   const int n = count_[i];
-  const int n_odd = n / 2, n_even = n - n_odd;
-  if (n_odd == 0) return vec3(0.0f);
-  const vec3 odd = sum_odd_[i] / float(n_odd), even = (sum_[i] - sum_odd_[i]) / float(n_even);
-  const vec3 d = odd - even;
-  return d * d * (float(n_odd) * float(n_even) / (float(n) * float(n)));
+  const int n_a = class_a_count(n), n_b = n - n_a;
+  if (n_a == 0 || n_b == 0) return vec3(0.0f);
+  const vec3 d = sum_a_[i] / float(n_a) - (sum_[i] - sum_a_[i]) / float(n_b);
+  return d * d * (float(n_a) * float(n_b) / (float(n) * float(n)));
 }
 
 double Film::estimated_relative_error() const {
-  double var = 0.0, mean = 0.0;
+  if (replicate_sum_.empty()) return 0.0;
+  double half_all = 0.0, half_replicated = 0.0, replicated = 0.0, mean = 0.0;
   for (size_t i = 0; i < sum_.size(); ++i) {
     const vec3 v = mean_variance(i), m = this->mean(i);
-    var += double(v.x) + v.y + v.z;
+    half_all += double(v.x) + v.y + v.z;
     mean += double(m.x) + m.y + m.z;
+    const int slot = replicate_slot(int(i % size_t(width_)), int(i / size_t(width_)));
+    if (slot < 0 || count_[i] == 0) continue;
+    // Two independent estimates x1, x2 of one pixel: E[(x1 - x2)^2] = 2 Var.
+    const vec3 d = m - replicate_sum_[size_t(slot)] / float(count_[i]);
+    replicated += 0.5 * (double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z);
+    half_replicated += double(v.x) + v.y + v.z;
   }
   if (mean <= 0.0) return 0.0;
-  return std::sqrt(var / (3.0 * sum_.size())) / (mean / (3.0 * sum_.size()));
+  // Where the half buffers see no variance at all (a converged or constant
+  // image), the replicates' own mean stands in.
+  const size_t n = sum_.size();
+  const double var = half_replicated > 0.0 ? half_all * (replicated / half_replicated)
+                                            : replicated / double(replicate_sum_.size()) * double(n);
+  return std::sqrt(var / (3.0 * n)) / (mean / (3.0 * n));
 }
 
 }  // namespace tessera

@@ -23,18 +23,46 @@ class PixelFilter {
 
 namespace tessera {
 
-// Per-pixel accumulation: the sum of all samples, the sum of the odd-indexed
-// samples (Cycles' "A" half, for the error estimate), the sample count and
+// Per-pixel accumulation: the sum of all samples, the sum of the class-A
+// samples (half of them, for adaptive sampling), the sample count and
 // whether adaptive sampling still wants samples. A pixel is only ever written
 // by the tile that owns it.
+//
+// The image-wide error estimate. All of a pixel's samples come from one
+// Owen-scrambled Sobol stream, whose mean converges faster than independent
+// samples would: the two halves of one stream are not independent (the even
+// samples, for one, lie in one half of the pixel), so their difference
+// overestimated the error 2-3x. Independent replicates measure it honestly: a
+// regular grid of pixels (every stride-th column and row, at least
+// kMinReplicatePixels of them) also renders the same samples from an
+// independently scrambled stream. For those pixels (x1 - x2)^2 / 2 is an
+// unbiased estimate of the pixel's variance; their sum over the sum of the
+// cheap half-buffer estimates scales the half-buffer estimates of all pixels.
 class Film {
  public:
-  void resize(size_t num_pixels);
+  static constexpr int kMinReplicatePixels = 512;
+  static constexpr int kMaxReplicateStride = 16;
+
+  // n = width * height pixels; replicates only with estimate_error.
+  void resize(int width, int height, bool estimate_error);
   size_t size() const { return sum_.size(); }
 
   void add(size_t i, int sample, const vec3& L) {
     sum_[i] += L;
-    if (sample & 1) sum_odd_[i] += L;
+    if (class_a(sample)) sum_a_[i] += L;
+  }
+  // The sample classes that adaptive sampling compares (Cycles'
+  // sample_is_class_A, after Christensen et al. 2018, "Progressive
+  // multi-jittered sample sequences", 10.2.1): the parity of the odd bits
+  // of the sample index. Each class is itself well stratified in the
+  // shuffled Sobol stream; odd against even indices would not be (the even
+  // samples of a pixel all lie in one half of its footprint).
+  static bool class_a(int sample) { return __builtin_popcount(uint32_t(sample) & 0xaaaaaaaaU) & 1; }
+  // How many of the samples 0 .. n-1 are class A: two of every aligned four,
+  // and of the partial four the pair whose bit 1 differs from the block's parity.
+  static int class_a_count(int n) {
+    const int q = n / 4, r = n % 4;
+    return 2 * q + (class_a(4 * q) ? std::min(r, 2) : std::max(r - 2, 0));
   }
   void set_count(size_t i, int n) { count_[i] = n; }
   int count(size_t i) const { return count_[i]; }
@@ -42,22 +70,33 @@ class Film {
   void deactivate(size_t i) { active_[i] = 0; }
   vec3 mean(size_t i) const { return count_[i] > 0 ? sum_[i] / float(count_[i]) : vec3(0.0f); }
 
+  // The replicate slot of pixel (x, y) of the film, or -1 if it has none.
+  int replicate_slot(int x, int y) const {
+    if (replicate_sum_.empty() || x % stride_ != 0 || y % stride_ != 0) return -1;
+    return (y / stride_) * replicate_columns_ + x / stride_;
+  }
+  void add_replicate(int slot, const vec3& L) { replicate_sum_[size_t(slot)] += L; }
+  int replicate_stride() const { return stride_; }
+
   // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
   // RGB, normalised by sqrt of the RGB sum.
   float pixel_error(size_t i) const;
-  // Estimated variance of the pixel's mean, per channel, from the two halves:
-  // Var(mean) = (mean_odd - mean_even)^2 n_odd n_even / n^2 (unbiased for
-  // independent samples). Zero below two samples.
+  // The half-buffer estimate of the variance of the pixel's mean, per
+  // channel: (mean_a - mean_b)^2 n_a n_b / n^2 (unbiased only for
+  // independent samples; here a relative weight). Zero below two samples.
   vec3 mean_variance(size_t i) const;
-  // Estimated relative RMSE of the image: sqrt(mean of mean_variance over
-  // pixels and channels) / mean pixel value.
+  // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
+  // channels) / mean pixel value, the half-buffer variances scaled by the
+  // replicates (above); 0 without replicates.
   double estimated_relative_error() const;
 
  private:
-  std::vector<vec3> sum_, sum_odd_;
+  int width_ = 0, stride_ = 1, replicate_columns_ = 0;
+  std::vector<vec3> sum_, sum_a_;
   std::vector<int> count_;
   std::vector<uint8_t> active_;
+  std::vector<vec3> replicate_sum_;  // per replicate slot: the replicate's sum (same count as the pixel)
 };
 
 }  // namespace tessera

@@ -23,7 +23,8 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   options_.tile_size = std::max(1, options.tile_size);
   tiles_x_ = (width() + options_.tile_size - 1) / options_.tile_size;
   tiles_y_ = (height() + options_.tile_size - 1) / options_.tile_size;
-  film_.resize(size_t(width()) * height());
+  // The error target needs the estimate, whatever estimate_error says.
+  film_.resize(width(), height(), options.estimate_error || options.error_target > 0.0f);
   display_.assign(size_t(width()) * height() * 4, 0.0f);
   data_passes_.configure(options.passes, film_.size(), scene.camera);
   for (int b = 0; b < kNumDataPasses; ++b)
@@ -42,16 +43,8 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
       for (int s = sample_begin; s < sample_end; ++s) {
         // Pixel coordinates are those of the full frame, so a region render
         // reproduces the full render's pixels exactly.
-        // Even and odd samples come from two independently scrambled Sobol
-        // streams, so the two halves of the film are independent estimates
-        // and their difference is an honest error estimate (one scrambled
-        // sequence split in two overestimates the error ~2x: its halves
-        // are anti-correlated).
-        Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s >> 1), options_.seed + (s & 1) * 0x9e3779b9U);
-        vec2 offset = filter_.sample(sampler.get_2d());
-        // The aperture sample is drawn only with depth of field (pinhole images stay as they were).
-        const vec2 u_lens = scene_.camera.has_lens() ? sampler.get_2d() : vec2(0.5f);
-        Ray ray = scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
+        Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed);
+        const Ray ray = camera_ray(px, py, sampler);
         if (!data_passes_.mask()) {
           film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
         } else {
@@ -60,9 +53,26 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
           data_passes_.add(i, first);
         }
       }
+      // The error estimate's replicate (film.h): the same samples from an
+      // independently scrambled stream, kept apart from the image.
+      const int slot = film_.replicate_slot(px - x0_, py - y0_);
+      if (slot >= 0) {
+        for (int s = sample_begin; s < sample_end; ++s) {
+          Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed + kReplicateSeed);
+          const Ray ray = camera_ray(px, py, sampler);
+          film_.add_replicate(slot, Li(scene_, ray, sampler, options_, counters, features_));
+        }
+      }
       film_.set_count(i, sample_end);
     }
   }
+}
+
+Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
+  const vec2 offset = filter_.sample(sampler.get_2d());
+  // The aperture sample is drawn only with depth of field (pinhole images stay as they were).
+  const vec2 u_lens = scene_.camera.has_lens() ? sampler.get_2d() : vec2(0.5f);
+  return scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
 }
 
 double RenderSession::elapsed_seconds() const {

@@ -62,6 +62,10 @@ class RenderSession {
  private:
   // Renders samples [sample_begin, sample_end) of the tile's active pixels.
   void render_tile(int tile, int sample_begin, int sample_end, PathCounters& counters);
+  // The camera ray of pixel (px, py) of the full frame for the sampler's sample.
+  Ray camera_ray(int px, int py, Sampler& sampler) const;
+  // Scrambling seed offset of the error estimate's replicates (film.h).
+  static constexpr uint32_t kReplicateSeed = 0x9e3779b9U;
   bool out_of_time() const;
 
   const Scene& scene_;

@@ -53,14 +53,31 @@ ClosureKind to_closure_kind(const std::string& kind) {
                               "'; expected PRINCIPLED, DIFFUSE, GLOSSY, GLASS or TRANSPARENT");
 }
 
+ShadingModel to_shading_model(const std::string& model) {
+  if (model == "CYCLES_3") return ShadingModel::Cycles3;
+  if (model == "CYCLES_4") return ShadingModel::Cycles4;
+  if (model == "CYCLES_4_3") return ShadingModel::Cycles4_3;
+  throw std::invalid_argument("unknown shading model '" + model + "'; expected CYCLES_3, CYCLES_4 or CYCLES_4_3");
+}
+
 // A closure from a dict with the keys of add_material's closure-0 arguments
 // ("kind", "weight", "base_color", "metallic", "roughness", "specular", "ior",
-// "transmission"); missing keys take the Principled defaults.
+// "transmission", "model", "multiscatter", "specular_tint", "coat",
+// "coat_roughness", "coat_ior", "coat_tint", "diffuse_roughness"); missing
+// keys take the Principled defaults.
 Closure to_closure(const py::dict& d) {
   Closure c;
   for (auto item : d) {
     const std::string key = py::str(item.first);
     if (key == "kind") c.kind = to_closure_kind(item.second.cast<std::string>());
+    else if (key == "model") c.model = to_shading_model(item.second.cast<std::string>());
+    else if (key == "multiscatter") c.multiscatter = item.second.cast<bool>();
+    else if (key == "specular_tint") c.specular_tint = to_vec3(item.second.cast<std::vector<float>>(), "closure specular_tint");
+    else if (key == "coat") c.coat = item.second.cast<float>();
+    else if (key == "coat_roughness") c.coat_roughness = item.second.cast<float>();
+    else if (key == "coat_ior") c.coat_ior = item.second.cast<float>();
+    else if (key == "coat_tint") c.coat_tint = to_vec3(item.second.cast<std::vector<float>>(), "closure coat_tint");
+    else if (key == "diffuse_roughness") c.diffuse_roughness = item.second.cast<float>();
     else if (key == "weight") c.weight = item.second.cast<float>();
     else if (key == "base_color") c.color = to_vec3(item.second.cast<std::vector<float>>(), "closure base_color");
     else if (key == "metallic") c.metallic = item.second.cast<float>();
@@ -181,6 +198,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("adaptive_min_samples", &RenderOptions::adaptive_min_samples)
       .def_readwrite("time_limit", &RenderOptions::time_limit)
       .def_readwrite("error_target", &RenderOptions::error_target)
+      .def_readwrite("estimate_error", &RenderOptions::estimate_error)
       .def_readwrite("seed", &RenderOptions::seed)
       .def_readwrite("threads", &RenderOptions::threads)
       .def_readwrite("tile_size", &RenderOptions::tile_size)
@@ -265,9 +283,19 @@ PYBIND11_MODULE(_core, m) {
           [](Scene& s, std::vector<float> base_color, float metallic, float roughness, float specular, float ior,
              float transmission, std::vector<float> emission_front, std::vector<float> emission_back,
              py::dict textures, float normal_strength, float emission_strength_front, float emission_strength_back,
-             const std::string& kind, float weight, float alpha, std::vector<py::dict> closures) {
+             const std::string& kind, float weight, float alpha, std::vector<py::dict> closures,
+             const std::string& model, bool multiscatter, std::vector<float> specular_tint, float coat,
+             float coat_roughness, float coat_ior, std::vector<float> coat_tint, float diffuse_roughness) {
             Material m;
             m.kind = to_closure_kind(kind);
+            m.model = to_shading_model(model);
+            m.multiscatter = multiscatter;
+            m.specular_tint = to_vec3(specular_tint, "specular_tint");
+            m.coat = coat;
+            m.coat_roughness = coat_roughness;
+            m.coat_ior = coat_ior;
+            m.coat_tint = to_vec3(coat_tint, "coat_tint");
+            m.diffuse_roughness = diffuse_roughness;
             m.weight = weight;
             m.alpha = alpha;
             if (closures.size() > size_t(kMaxClosures - 1))
@@ -308,10 +336,15 @@ PYBIND11_MODULE(_core, m) {
           py::arg("textures") = py::dict(), py::arg("normal_strength") = 1.0f,
           py::arg("emission_strength_front") = 1.0f, py::arg("emission_strength_back") = 0.0f,
           py::arg("kind") = "PRINCIPLED", py::arg("weight") = 1.0f, py::arg("alpha") = 1.0f,
-          py::arg("closures") = std::vector<py::dict>(),
+          py::arg("closures") = std::vector<py::dict>(), py::arg("model") = "CYCLES_3",
+          py::arg("multiscatter") = false, py::arg("specular_tint") = std::vector<float>{1, 1, 1},
+          py::arg("coat") = 0.0f, py::arg("coat_roughness") = 0.03f, py::arg("coat_ior") = 1.5f,
+          py::arg("coat_tint") = std::vector<float>{1, 1, 1}, py::arg("diffuse_roughness") = 0.0f,
           "Adds a material: closure 0 (kind, weight and the Principled-named parameters; base_color is the "
-          "node's Color for other kinds), Principled alpha of closure 0, and more closures as dicts with the "
-          "same keys; returns its index.")
+          "node's Color for other kinds; model: whose closures, CYCLES_3 for Blender 3.x, CYCLES_4 for 4.0 "
+          "to 4.2, CYCLES_4_3 from 4.3; multiscatter: the Multiscatter GGX distribution; specular_tint, "
+          "coat*, diffuse_roughness: Principled v2 inputs), Principled alpha of closure 0, and more closures "
+          "as dicts with the same keys; returns its index.")
       .def(
           "add_light",
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
