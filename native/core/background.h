@@ -18,8 +18,13 @@ class Background {
 
   bool emits() const { return has_image_ ? max_component(strength_) > 0.0f : max_component(color_) > 0.0f; }
   bool has_image() const { return has_image_; }
-  vec3 Le(const vec3& dir) const;
-  bool sample(vec2 u, vec3* wi, float* pdf) const;
+  vec3 Le(const vec3& dir) const { return Le(dir, nullptr); }
+  // Le, and when pdf is given also the density sample() has for dir: one
+  // direction-to-texture mapping for both (a ray that escapes needs both).
+  vec3 Le(const vec3& dir, float* pdf) const;
+  // A direction by importance, its density (solid angle) and, when le is
+  // given, the radiance from it.
+  bool sample(vec2 u, vec3* wi, float* pdf, vec3* le = nullptr) const;
   float pdf(const vec3& wi) const;
   float average_luminance() const;
 
@@ -27,6 +32,7 @@ class Background {
   vec2 direction_to_uv(const vec3& dir) const;
   vec3 uv_to_direction(vec2 uv) const;
   vec3 lookup(vec2 uv) const;
+  float pdf_uv(vec2 uv) const;
 
   vec3 color_{0.0f};
   bool has_image_ = false;

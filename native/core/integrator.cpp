@@ -116,10 +116,13 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
 
     if (!found) {
-      if (first && !first->complete()) first->miss(scene.background.emits() ? scene.background.Le(ray.d) : vec3(0.0f));
-      if (scene.background.emits()) {
-        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.pdf_background(ray.d));
-        add(bounce, beta * scene.background.Le(ray.d) * w);
+      const bool emits = scene.background.emits();
+      float world_pdf = 0.0f;
+      const vec3 le = emits ? scene.background.Le(ray.d, count_emission_fully ? nullptr : &world_pdf) : vec3(0.0f);
+      if (first && !first->complete()) first->miss(le);
+      if (emits) {
+        float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.world_pmf() * world_pdf);
+        add(bounce, beta * le * w);
       }
       break;
     }

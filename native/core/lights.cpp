@@ -193,9 +193,8 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   const uint32_t nl = uint32_t(lights_.size());
   if (entry == kTopWorld) {
     float pdf;
-    if (!world_->sample(u, &ls.wi, &pdf)) return false;
+    if (!world_->sample(u, &ls.wi, &pdf, &ls.li)) return false;
     ls.dist = kInf;
-    ls.li = world_->Le(ls.wi);
     ls.pdf = pdf * pmf;
     ls.is_delta = false;
     return ls.pdf > 0.0f;

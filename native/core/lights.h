@@ -75,6 +75,9 @@ class LightSampler {
   float pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
   float pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
   float pdf_background(const vec3& wi) const;
+  // The probability of picking the world among the lights (pdf_background =
+  // this x the world's own density), for a caller that has that density.
+  float world_pmf() const { return world_ ? top_world_pmf_ : 0.0f; }
 
   // Nearest area light, or point/spot light with a radius, hit by the ray
   // before tmax (BSDF-sampled rays see them, so they take part in MIS);

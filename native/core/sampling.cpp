@@ -75,7 +75,7 @@ AliasTable::AliasTable(const std::vector<float>& weights) {
   for (uint32_t i : small) bins_[i].q = 1.0f, bins_[i].alias = i;
 }
 
-Distribution1D::Distribution1D(const float* f, size_t n) : func(f, f + n), cdf(n + 1) {
+Distribution1D::Distribution1D(const float* f, size_t n) : func(f, f + n), cdf(n + 1), guide(n) {
   cdf[0] = 0.0f;
   for (size_t i = 0; i < n; ++i) cdf[i + 1] = cdf[i] + std::max(0.0f, func[i]) / n;
   integral = cdf[n];
@@ -84,11 +84,22 @@ Distribution1D::Distribution1D(const float* f, size_t n) : func(f, f + n), cdf(n
   } else {
     for (size_t i = 0; i <= n; ++i) cdf[i] /= integral;
   }
+  cdf[n] = 1.0f;
+  // The last segment whose start is <= k / n.
+  for (size_t k = 0, i = 0; k < n; ++k) {
+    const float u = float(k) / float(n);
+    while (i + 1 < n && cdf[i + 1] <= u) ++i;
+    guide[k] = uint32_t(i);
+  }
 }
 
 float Distribution1D::sample_continuous(float u, float* pdf, size_t* offset) const {
-  size_t lo = std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
-  size_t o = std::min(lo == 0 ? 0 : lo - 1, func.size() - 1);
+  const size_t n = func.size();
+  // The segment o with cdf[o] <= u < cdf[o + 1] (the last one for u >= 1),
+  // skipping empty segments as the binary search upper_bound did.
+  size_t o = guide[std::min(size_t(u * float(n)), n - 1)];
+  while (o > 0 && cdf[o] > u) --o;  // u * n rounded up into the next bucket
+  while (o + 1 < n && cdf[o + 1] <= u) ++o;
   *offset = o;
   float du = u - cdf[o];
   float width = cdf[o + 1] - cdf[o];

@@ -113,6 +113,10 @@ class AliasTable {
 // (pbrt-v4 A.4.2). Used for the environment map and the pixel filter.
 struct Distribution1D {
   std::vector<float> func, cdf;
+  // guide[k]: the segment holding u = k / n, where the search for u in
+  // [k/n, (k+1)/n) starts (a guide table, Chen and Asau 1974): O(1) expected
+  // steps instead of a binary search over the whole CDF.
+  std::vector<uint32_t> guide;
   float integral = 0.0f;
   Distribution1D() = default;
   explicit Distribution1D(const float* f, size_t n);

@@ -2,7 +2,10 @@
 // the Owen scrambling must keep.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "core/sampler.h"
+#include "core/sampling.h"
 
 using namespace tessera;
 
@@ -41,6 +44,29 @@ TEST(Sampler, EveryDimensionPairIsANetOverPowerOfTwoSampleCounts) {
             ASSERT_EQ(cells[c], 1) << "m=" << m << " pair " << pair << " shape " << nx << "x" << ny;
         }
       }
+    }
+  }
+}
+
+// The guide table finds the same segment as a binary search over the CDF
+// (the last one whose start is <= u), zero-weight segments included.
+TEST(Sampler, Distribution1DGuideTableFindsTheBinarySearchSegment) {
+  uint32_t x = 7;
+  auto next = [&] { return u32_to_unit_float(x = hash_u32(x + 1)); };
+  for (int trial = 0; trial < 50; ++trial) {
+    const size_t n = 1 + size_t(next() * 300);
+    std::vector<float> f(n);
+    for (float& v : f) v = next() < 0.3f ? 0.0f : next() * (next() < 0.1f ? 1000.0f : 1.0f);
+    const Distribution1D d(f.data(), n);
+    for (int i = 0; i < 2000; ++i) {
+      const float u = i < 1000 ? next() : d.cdf[size_t(next() * n)];  // also exactly on segment starts
+      if (!(u < 1.0f)) continue;
+      const size_t lo = size_t(std::upper_bound(d.cdf.begin(), d.cdf.end(), u) - d.cdf.begin());
+      const size_t expected = std::min(lo == 0 ? 0 : lo - 1, n - 1);
+      float pdf;
+      size_t offset;
+      d.sample_continuous(u, &pdf, &offset);
+      ASSERT_EQ(expected, offset) << "n " << n << " u " << u;
     }
   }
 }
