@@ -43,8 +43,10 @@ constexpr float kMinSphericalSampleArea = 3e-4f;
 
 // Solid angle of triangle t from p when sample() samples it by solid angle,
 // with its corners as unit vectors from p; 0 when it samples it by area.
-// sample() and pdf_triangle() decide with this one function.
-float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3]) {
+// sample() and pdf_triangle() decide with this one function. near_plane (if
+// given): p is within 1% of its distance to the corners from the
+// triangle's plane, where sample_spherical_triangle needs double precision.
+float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3], bool* near_plane = nullptr) {
   const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
   // Seen from at least d away, a triangle subtends at most area / d^2.
   const vec3 centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
@@ -62,6 +64,7 @@ float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 cor
   const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
   if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;
   corners[0] = a / la, corners[1] = b / lb, corners[2] = c / lc;
+  if (near_plane) *near_plane = h < 0.01f * std::max(la, std::max(lb, lc));
   const float omega = spherical_triangle_area(corners[0], corners[1], corners[2]);
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
@@ -202,12 +205,13 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   if (entry >= nl) {
     const EmissiveTriangle& t = triangles_[entry - nl];
     vec3 corners[3];
-    const float omega = spherical_sampling_area(t, p, corners);
+    bool near_plane = true;
+    const float omega = spherical_sampling_area(t, p, corners, &near_plane);
     vec3 q;
     float dist2;
     if (omega > 0.0f) {
       vec3 w;
-      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w)) return false;
+      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w, near_plane)) return false;
       // Where the sampled direction meets the triangle's plane.
       const float denom = glm::dot(w, t.n);
       const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;

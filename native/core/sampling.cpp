@@ -2,45 +2,52 @@
 
 namespace tessera {
 
-bool sample_spherical_triangle(const vec3& a_, const vec3& b_, const vec3& c_, float area, vec2 u, vec3* w) {
-  using dvec3 = glm::dvec3;
-  // In double: for a point almost in the triangle's plane the corners are
-  // almost on one great circle, and in float the construction falls apart
-  // (light lost next to a quad light 1e-5 of its size away).
+namespace {
+template <typename Real>
+bool sample_spherical_triangle_in(const vec3& a_, const vec3& b_, const vec3& c_, float area, vec2 u, vec3* w) {
+  using dvec3 = glm::vec<3, Real>;
   if (!(area > 0.0f)) return false;
   const dvec3 a = glm::normalize(dvec3(a_)), b = glm::normalize(dvec3(b_)), c = glm::normalize(dvec3(c_));
   // Normals of the great circles through a and b, and through c and a.
   dvec3 n_ab = glm::cross(a, b), n_ca = glm::cross(c, a);
-  const double l_ab = glm::length(n_ab), l_ca = glm::length(n_ca);
-  if (!(l_ab > 0.0 && l_ca > 0.0)) return false;
+  const Real l_ab = glm::length(n_ab), l_ca = glm::length(n_ca);
+  if (!(l_ab > Real(0) && l_ca > Real(0))) return false;
   n_ab /= l_ab, n_ca /= l_ca;
   // The interior angle alpha at a, between those circles, as its cosine and
   // sine (the sine from the cross product stays accurate for thin corners,
   // where acos of the dot product would not).
-  const double cos_alpha = std::clamp(-glm::dot(n_ab, n_ca), -1.0, 1.0);
-  const double sin_alpha = glm::length(glm::cross(n_ab, n_ca));
-  if (!(sin_alpha > 0.0)) return false;
+  const Real cos_alpha = std::clamp(-glm::dot(n_ab, n_ca), Real(-1), Real(1));
+  const Real sin_alpha = glm::length(glm::cross(n_ab, n_ca));
+  if (!(sin_alpha > Real(0))) return false;
   // Sub-triangle (a, b, c') of area A' = u.x * area: Arvo's closed form for
   // the cosine of the arc from a to c' (pbrt-v4 A.5.5 with phi = A' + pi -
   // alpha, its sine and cosine expanded so that only A' needs a sincos).
-  const double a_sub = double(u.x) * double(area);
-  const double sin_a = std::sin(a_sub), cos_a = std::cos(a_sub);
-  const double sin_phi = cos_a * sin_alpha - sin_a * cos_alpha;
-  const double cos_phi = -cos_a * cos_alpha - sin_a * sin_alpha;
-  const double k1 = cos_phi + cos_alpha;
-  const double k2 = sin_phi - sin_alpha * glm::dot(a, b);
-  double cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / ((k2 * sin_phi + k1 * cos_phi) * sin_alpha);
-  cos_bp = std::clamp(std::isfinite(cos_bp) ? cos_bp : 1.0, -1.0, 1.0);
+  const Real a_sub = Real(u.x) * Real(area);
+  const Real sin_a = std::sin(a_sub), cos_a = std::cos(a_sub);
+  const Real sin_phi = cos_a * sin_alpha - sin_a * cos_alpha;
+  const Real cos_phi = -cos_a * cos_alpha - sin_a * sin_alpha;
+  const Real k1 = cos_phi + cos_alpha;
+  const Real k2 = sin_phi - sin_alpha * glm::dot(a, b);
+  Real cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_alpha) / ((k2 * sin_phi + k1 * cos_phi) * sin_alpha);
+  cos_bp = std::clamp(std::isfinite(cos_bp) ? cos_bp : Real(1), Real(-1), Real(1));
   const dvec3 c_perp = c - glm::dot(c, a) * a;
-  if (!(glm::dot(c_perp, c_perp) > 0.0)) return false;
-  const dvec3 cp = cos_bp * a + std::sqrt(std::max(0.0, 1.0 - cos_bp * cos_bp)) * glm::normalize(c_perp);
+  if (!(glm::dot(c_perp, c_perp) > Real(0))) return false;
+  const dvec3 cp = cos_bp * a + std::sqrt(std::max(Real(0), Real(1) - cos_bp * cos_bp)) * glm::normalize(c_perp);
   // Uniform in solid angle along the arc from b to c'.
-  const double cos_theta = 1.0 - u.y * (1.0 - glm::dot(cp, b));
-  const double sin_theta = std::sqrt(std::max(0.0, 1.0 - cos_theta * cos_theta));
+  const Real cos_theta = Real(1) - u.y * (Real(1) - glm::dot(cp, b));
+  const Real sin_theta = std::sqrt(std::max(Real(0), Real(1) - cos_theta * cos_theta));
   const dvec3 bp = cp - glm::dot(cp, b) * b;
-  const dvec3 wd = glm::dot(bp, bp) > 0.0 ? cos_theta * b + sin_theta * glm::normalize(bp) : b;
+  const dvec3 wd = glm::dot(bp, bp) > Real(0) ? cos_theta * b + sin_theta * glm::normalize(bp) : b;
   *w = vec3(wd);
   return is_finite(*w);
+}
+
+}  // namespace
+
+bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, float area, vec2 u, vec3* w,
+                               bool near_plane) {
+  return near_plane ? sample_spherical_triangle_in<double>(a, b, c, area, u, w)
+                    : sample_spherical_triangle_in<float>(a, b, c, area, u, w);
 }
 
 AliasTable::AliasTable(const std::vector<float>& weights) {

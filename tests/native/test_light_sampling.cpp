@@ -136,11 +136,13 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
   EXPECT_NEAR(omega, corner(A, B, C) + corner(B, C, A) + corner(C, A, B) - M_PI, 1e-5);
   // u.x alone: with u.y = 1 the sample is the corner c' of the sub-triangle
   // (a, b, c'), whose solid angle must be u.x times the whole.
-  for (float ux : {0.05f, 0.25f, 0.5f, 0.75f, 0.95f}) {
-    vec3 cp;
-    ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(ux, 1.0f), &cp));
-    EXPECT_NEAR(spherical_triangle_area(a, b, cp), ux * omega, 2e-5 * omega) << "u.x " << ux;
-  }
+  // Both precisions (this point is far from the plane: float is enough).
+  for (bool near_plane : {true, false})
+    for (float ux : {0.05f, 0.25f, 0.5f, 0.75f, 0.95f}) {
+      vec3 cp;
+      ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(ux, 1.0f), &cp, near_plane));
+      EXPECT_NEAR(spherical_triangle_area(a, b, cp), ux * omega, 2e-5 * omega) << "u.x " << ux << " " << near_plane;
+    }
 }
 
 // Close to a large emitter (a ceiling 1 mm above a quad light, as in
@@ -153,7 +155,8 @@ TEST(LightSampling, TriangleLightCloseByIsSampledBySolidAngle) {
   // Above the middle of a triangle, on the diagonal the two share, and just
   // outside the quad's edge.
   for (vec2 xy : {vec2(0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.52f, 0.1f)})
-  for (float h : {1e-5f, 1e-3f, 0.05f, 0.3f}) {
+  // (1.2e-2 and up: sampled in float, see spherical_sampling_area)
+  for (float h : {1e-5f, 1e-3f, 6e-3f, 1.2e-2f, 0.05f, 0.3f}) {
     const vec3 p(xy.x, xy.y, h), n(0.0f, 0.0f, -1.0f);
     const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 15);
     const double exact = polygon_irradiance(q, p, n);
