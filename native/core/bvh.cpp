@@ -306,9 +306,10 @@ struct FastBuilder {
     alignas(16) float e[4];
     _mm_store_ps(e, ext);
     const uint32_t n = end - begin;
-    // No more bins than references: small ranges (most nodes) sweep fewer
-    // empty bins.
-    const int nb = n < uint32_t(this->nb) ? std::max(2, int(n)) : this->nb;
+    // Bins grow with the range (Embree's BinMapping: 4 + n / 20, at most the
+    // option's count): the many small ranges near the leaves bin and sweep
+    // a handful of bins, the large ones keep the full resolution.
+    const int nb = int(std::min<uint32_t>(uint32_t(this->nb), std::min<uint32_t>(n, 4 + n / 20)));
     alignas(16) float sc[4];
     for (int a = 0; a < 4; ++a) sc[a] = a < 3 && e[a] > 0.0f ? float(nb) * 0.99999f / e[a] : 0.0f;
     const __m128 scale = _mm_load_ps(sc);

@@ -3,9 +3,34 @@
 #include "simd_tri4.h"
 #include "wide_traverse.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <new>
 
 namespace tessera {
+
+constexpr size_t kLargePage = size_t(2) << 20;
+
+// Arrays of at least one large page start on a 2 MB boundary and have their
+// whole large pages marked MADV_HUGEPAGE before first touch; the tail stays
+// in small pages, so no memory is wasted.
+void* bvh_alloc_bytes(size_t bytes) {
+  if (bytes < kLargePage) return ::operator new(bytes, std::align_val_t(64));
+  void* p = std::aligned_alloc(kLargePage, (bytes + kLargePage - 1) & ~(kLargePage - 1));
+  if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+  madvise(p, bytes & ~(kLargePage - 1), MADV_HUGEPAGE);
+#endif
+  return p;
+}
+
+void bvh_free_bytes(void* p, size_t bytes) {
+  if (bytes < kLargePage) ::operator delete(p, std::align_val_t(64));
+  else std::free(p);
+}
+
 namespace {
 
 // Collapses the binary tree into an N-wide one (Out: BVH4 or BVH8, Node its
@@ -50,11 +75,10 @@ struct Collapser {
     node.child[c] = ref;
   }
 
-  // Returns the reference to the subtree of binary node i.
-  uint32_t emit(uint32_t i) {
-    const BVHNode& n = bin.nodes[i];
-    if (n.is_leaf()) return emit_leaf(n);
-    uint32_t kids[N] = {n.first, n.first + 1};
+  // The children of interior node n: its largest-area interior descendants
+  // are opened until there are N (or only leaves are left).
+  int open_children(const BVHNode& n, uint32_t* kids) const {
+    kids[0] = n.first, kids[1] = n.first + 1;
     int count = 2;
     while (count < N) {
       int best = -1;
@@ -71,6 +95,15 @@ struct Collapser {
       kids[best] = bin.nodes[split].first;
       kids[count++] = bin.nodes[split].first + 1;
     }
+    return count;
+  }
+
+  // Returns the reference to the subtree of binary node i.
+  uint32_t emit(uint32_t i) {
+    const BVHNode& n = bin.nodes[i];
+    if (n.is_leaf()) return emit_leaf(n);
+    uint32_t kids[N];
+    const int count = open_children(n, kids);
     const uint32_t index = uint32_t(out.nodes.size());
     out.nodes.emplace_back();
     uint32_t refs[N];
@@ -82,12 +115,26 @@ struct Collapser {
     return index;
   }
 
+  // Exact sizes of the output arrays (a dry run of emit's choices), so that
+  // each is allocated once: no regrowth, no shrink-to-fit copy.
+  void count(uint32_t i, size_t& nodes, size_t& blocks) const {
+    const BVHNode& n = bin.nodes[i];
+    if (n.is_leaf()) {
+      blocks += (n.count + 3) / 4;
+      return;
+    }
+    uint32_t kids[N];
+    const int k = open_children(n, kids);
+    ++nodes;
+    for (int c = 0; c < k; ++c) count(kids[c], nodes, blocks);
+  }
+
   void run() {
     if (bin.nodes.empty()) return;
-    size_t leaves = 0;
-    for (const BVHNode& n : bin.nodes) leaves += n.is_leaf();
-    out.nodes.reserve(bin.nodes.size() / (N - 1) + 1);
-    out.tris.reserve(leaves + bin.prim_order.size() / 4 + 1);
+    size_t num_nodes = 0, num_blocks = 0;
+    count(0, num_nodes, num_blocks);
+    out.nodes.reserve(std::max<size_t>(num_nodes, 1));
+    out.tris.reserve(num_blocks);
     const BVHNode& root = bin.nodes[0];
     if (root.is_leaf()) {
       // A single leaf: wrap it in a root with one child.
@@ -99,8 +146,6 @@ struct Collapser {
     } else {
       emit(0);
     }
-    out.nodes.shrink_to_fit();
-    out.tris.shrink_to_fit();
     out.bounds = AABB{root.lo, root.hi};
   }
 };

@@ -14,6 +14,29 @@
 
 namespace tessera {
 
+// Allocator for the traversed arrays (nodes, triangle blocks): arrays of 2 MB
+// or more are 2 MB aligned and their whole 2 MB pages marked MADV_HUGEPAGE
+// before first touch, so that incoherent rays over a large mesh miss the TLB
+// far less often (Embree's "hugepages" option; the kernel may decline, which
+// only costs speed).
+void* bvh_alloc_bytes(size_t bytes);
+void bvh_free_bytes(void* p, size_t bytes);
+template <typename T>
+struct LargePageAllocator {
+  using value_type = T;
+  LargePageAllocator() = default;
+  template <typename U>
+  LargePageAllocator(const LargePageAllocator<U>&) {}
+  T* allocate(size_t n) { return static_cast<T*>(bvh_alloc_bytes(n * sizeof(T))); }
+  void deallocate(T* p, size_t n) { bvh_free_bytes(p, n * sizeof(T)); }
+  template <typename U>
+  bool operator==(const LargePageAllocator<U>&) const { return true; }
+  template <typename U>
+  bool operator!=(const LargePageAllocator<U>&) const { return false; }
+};
+template <typename T>
+using BVHArray = std::vector<T, LargePageAllocator<T>>;
+
 // 128 bytes, two cache lines. Child boxes per axis as [lo x4][hi x4]; an
 // unused child has an inverted box (lo = +inf, hi = -inf), which no ray hits.
 struct alignas(64) BVH4Node {
@@ -40,8 +63,8 @@ struct alignas(16) Tri4 {
 static_assert(sizeof(Tri4) == 160, "Tri4 must stay 160 bytes");
 
 struct BVH4 {
-  std::vector<BVH4Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
-  std::vector<Tri4> tris;
+  BVHArray<BVH4Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
+  BVHArray<Tri4> tris;
   AABB bounds;
   float sah_cost = 0.0f;  // of the binary tree it was collapsed from
 

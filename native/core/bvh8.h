@@ -25,8 +25,8 @@ struct alignas(64) BVH8Node {
 static_assert(sizeof(BVH8Node) == 256, "BVH8Node must stay 256 bytes");
 
 struct BVH8 {
-  std::vector<BVH8Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
-  std::vector<Tri4> tris;
+  BVHArray<BVH8Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
+  BVHArray<Tri4> tris;
   AABB bounds;
   float sah_cost = 0.0f;  // of the binary tree it was collapsed from
 

@@ -34,6 +34,10 @@ bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typena
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = nodes[ref];
+      // The child references sit apart from the boxes (the BVH8's last
+      // line): ask for them now, next to the box loads, instead of after the
+      // test has picked a child, which serialises two misses per level.
+      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       alignas(32) float dist[kWidth];
       int mask = Traits::test(n, ray, dist);
       if (mask != 0) {
@@ -115,6 +119,7 @@ bool wide_occluded(const typename Traits::Node* nodes, const Tri4* tris, typenam
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = nodes[ref];
+      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       alignas(32) float dist[Traits::kWidth];
       int mask = Traits::test(n, ray, dist);
       if (mask != 0) {

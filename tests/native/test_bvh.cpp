@@ -320,3 +320,24 @@ TEST(BVH, EmptyMesh) {
   EXPECT_FALSE(intersect_mesh(mesh, vec3(0), vec3(0, 0, 1), tmax, h));
   EXPECT_FALSE(occluded_mesh(mesh, vec3(0), vec3(0, 0, 1), kInf));
 }
+
+// The collapse sizes its arrays exactly (one allocation each, no slack), and
+// the traversed arrays are cache-line aligned; those of 2 MB and more start
+// on a 2 MB boundary (large pages).
+TEST(BVH, WideArraysAreExactAndAligned) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/igea.ply");
+  for (int w : widths()) {
+    Mesh mesh = make_mesh(s, with_width({}, w));
+    auto check = [](const auto& a) {
+      EXPECT_EQ(a.capacity(), a.size());
+      const size_t bytes = a.size() * sizeof(a[0]);
+      const uintptr_t p = reinterpret_cast<uintptr_t>(a.data());
+      EXPECT_EQ(p % 64, 0u);
+      if (bytes >= (size_t(2) << 20)) EXPECT_EQ(p % (size_t(2) << 20), 0u) << bytes << " bytes";
+    };
+    if (w == 8) check(mesh.bvh8.nodes), check(mesh.bvh8.tris);
+    else check(mesh.bvh.nodes), check(mesh.bvh.tris);
+    EXPECT_GE(mesh.width() == 8 ? mesh.bvh8.tris.size() * sizeof(Tri4) : mesh.bvh.tris.size() * sizeof(Tri4),
+              size_t(2) << 20) << "igea's triangle blocks should span large pages";
+  }
+}
