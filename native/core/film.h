@@ -30,14 +30,12 @@ namespace tessera {
 //
 // The image-wide error estimate. All of a pixel's samples come from one
 // Owen-scrambled Sobol stream, whose mean converges faster than independent
-// samples would: the two halves of one stream are not independent (the even
-// samples, for one, lie in one half of the pixel), so their difference
-// overestimated the error 2-3x. Independent replicates measure it honestly: a
-// regular grid of pixels (every stride-th column and row, at least
-// kMinReplicatePixels of them) also renders the same samples from an
-// independently scrambled stream. For those pixels (x1 - x2)^2 / 2 is an
-// unbiased estimate of the pixel's variance; their sum over the sum of the
-// cheap half-buffer estimates scales the half-buffer estimates of all pixels.
+// samples would, so a pixel's own samples cannot tell its error: the
+// difference of two halves of one stream overestimated it 1.2-4.7x on the
+// shared scenes. Independent replicates measure it: a regular grid of pixels
+// (every stride-th column and row, at least kMinReplicatePixels of them)
+// also renders the same samples from an independently scrambled stream, kept
+// apart from the image.
 class Film {
  public:
   static constexpr int kMinReplicatePixels = 512;
@@ -82,13 +80,9 @@ class Film {
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
   // RGB, normalised by sqrt of the RGB sum.
   float pixel_error(size_t i) const;
-  // The half-buffer estimate of the variance of the pixel's mean, per
-  // channel: (mean_a - mean_b)^2 n_a n_b / n^2 (unbiased only for
-  // independent samples; here a relative weight). Zero below two samples.
-  vec3 mean_variance(size_t i) const;
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
-  // channels) / mean pixel value, the half-buffer variances scaled by the
-  // replicates (above); 0 without replicates.
+  // channels) / mean pixel value, the variance from the replicates (above);
+  // 0 without replicates.
   double estimated_relative_error() const;
 
  private:

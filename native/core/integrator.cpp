@@ -171,10 +171,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const BSDF bsdf(ns, ng, material, si.back_face, -ray.d);
 
     // Next-event estimation.
-    const float u_light = sampler.get_1d();
-    const vec2 u_light_pos = sampler.get_2d();
+    const vec2 u_light = sampler.get_2d();
     LightSample ls;
-    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, u_light_pos, ls)) {
+    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
       vec3 f = bsdf.f(ls.wi) * std::abs(glm::dot(ls.wi, ns));
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);

@@ -202,7 +202,7 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
   return node;
 }
 
-bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf) const {
+bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf, float* u_remapped) const {
   if (nodes_.empty()) return false;
   uint32_t node = 0;
   float prob = 1.0f;
@@ -224,6 +224,7 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
   }
   *light = nodes_[node].index;
   *pmf = prob;
+  if (u_remapped) *u_remapped = u;
   return prob > 0.0f;
 }
 

@@ -40,7 +40,8 @@ class LightBVH {
 
   // Picks a light for point p with normal n from u in [0,1); false when no
   // light can contribute there.
-  bool sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf) const;
+  // u_remapped (if given): u rescaled to [0,1) again within the choices made.
+  bool sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf, float* u_remapped = nullptr) const;
   // Probability with which sample() picks `light` at (p, n).
   float pmf(const vec3& p, const vec3& n, uint32_t light) const;
   size_t node_count() const { return nodes_.size(); }

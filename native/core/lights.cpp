@@ -177,19 +177,19 @@ float LightSampler::selection_pmf(uint32_t entry, const vec3& p, const vec3& n) 
   return top_bvh_pmf_ > 0.0f ? top_bvh_pmf_ * bvh_.pmf(p, n, entry) : 0.0f;
 }
 
-bool LightSampler::sample(const vec3& p, const vec3& n, float u_select, vec2 u, LightSample& ls) const {
+bool LightSampler::sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls) const {
   if (top_.empty()) return false;
-  float pmf, u_rest = u_select;
-  const uint32_t top = top_entries_.size() > 1 ? top_entries_[top_.sample(u_select, &pmf, &u_rest)] : top_entries_[0];
+  float pmf, u_rest = u.x;
+  const uint32_t top = top_entries_.size() > 1 ? top_entries_[top_.sample(u.x, &pmf, &u_rest)] : top_entries_[0];
   if (top_entries_.size() == 1) pmf = 1.0f;
   if (pmf <= 0.0f) return false;
   uint32_t entry = top;
   if (top == kTopBVH) {
     float bvh_pmf;
-    if (!bvh_.sample(p, n, u_rest, &entry, &bvh_pmf)) return false;
+    if (!bvh_.sample(p, n, u_rest, &entry, &bvh_pmf, &u_rest)) return false;
     pmf *= bvh_pmf;
   }
-  return sample_entry(entry, pmf, p, u, ls);
+  return sample_entry(entry, pmf, p, vec2(u_rest, u.y), ls);
 }
 
 bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls) const {

@@ -64,8 +64,11 @@ class LightSampler {
   // A light sample for the shading point p with shading normal n (either
   // side; 0 when there is none): the light is chosen by its estimated
   // contribution there, so the same (p, n) must be given to the pdf_*
-  // functions below for MIS.
-  bool sample(const vec3& p, const vec3& n, float u_select, vec2 u, LightSample& ls) const;
+  // functions below for MIS. u.x picks the light and, rescaled to [0,1) by
+  // that choice, becomes the first coordinate of the point on it (as Cycles'
+  // light_distribution_sample reuses its random number), so that the points
+  // on each light are stratified with the choice, from one 2D sample.
+  bool sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls) const;
 
   // Densities with which sample() from (p, n) would have produced the
   // direction hitting: the emissive triangle (instance, prim) at distance

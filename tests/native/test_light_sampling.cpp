@@ -70,7 +70,7 @@ Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p,
   for (int i = 0; i < N; ++i) {
     LightSample s;
     double w = 0.0;
-    if (lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s)) {
+    if (lights.sample(p, n, vec2(U(rng), U(rng)), s)) {
       w = s.li.x * std::max(0.0f, glm::dot(s.wi, n)) / s.pdf;
       // The triangle hit along wi (the one the point is deepest inside),
       // as the integrator finds it.
@@ -199,7 +199,7 @@ TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
     double sum = 0.0;
     for (int i = 0; i < 4096; ++i) {
       LightSample s;
-      if (lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s))
+      if (lights.sample(p, n, vec2(U(rng), U(rng)), s))
         sum += s.li.x * std::abs(s.wi.z) / s.pdf;  // cosine at a surface lying on the light
     }
     EXPECT_LT(sum / 4096, 1e-4) << "x " << xy.x << " y " << xy.y;
@@ -337,7 +337,7 @@ TEST(LightBVH, OneSidedLightsBehindThePointAreNotPicked) {
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
   for (int i = 0; i < 1000; ++i) {
     LightSample s;
-    EXPECT_FALSE(lights.sample(p, n, U(rng), vec2(U(rng), U(rng)), s));
+    EXPECT_FALSE(lights.sample(p, n, vec2(U(rng), U(rng)), s));
   }
 }
 
