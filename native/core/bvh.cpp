@@ -5,13 +5,38 @@
 #include <tbb/parallel_for.h>
 #include <tbb/combinable.h>
 #include <emmintrin.h>
+#include <sys/mman.h>
+
+#include <cstdlib>
 #include <cstring>
 
 #include <algorithm>
 #include <atomic>
+#include <memory>
 #include <numeric>
 
 namespace tessera {
+
+constexpr size_t kLargePage = size_t(2) << 20;
+
+// Arrays of at least one large page start on a 2 MB boundary and have their
+// whole large pages marked MADV_HUGEPAGE before first touch; the tail stays
+// in small pages, so no memory is wasted.
+void* bvh_alloc_bytes(size_t bytes) {
+  if (bytes < kLargePage) return ::operator new(bytes, std::align_val_t(64));
+  void* p = std::aligned_alloc(kLargePage, (bytes + kLargePage - 1) & ~(kLargePage - 1));
+  if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+  madvise(p, bytes & ~(kLargePage - 1), MADV_HUGEPAGE);
+#endif
+  return p;
+}
+
+void bvh_free_bytes(void* p, size_t bytes) {
+  if (bytes < kLargePage) ::operator delete(p, std::align_val_t(64));
+  else std::free(p);
+}
+
 namespace {
 
 struct Split {
@@ -26,7 +51,7 @@ struct Builder {
   const BuildOptions& opt;
   std::vector<vec3> centroids;
   std::vector<uint32_t> prims;
-  std::vector<BVHNode> nodes;
+  BVHArray<BVHNode> nodes;
   std::atomic<uint32_t> node_count{1};
 
   uint32_t block = 1;
@@ -251,7 +276,10 @@ inline __m128 half_areas3(const SSEBox* b) {
 struct FastBuilder {
   const BuildOptions& opt;
   std::vector<PrimRef> refs;
-  std::vector<BVHNode> nodes;
+  // Scatter buffer of the parallel partitions, allocated once per build
+  // (uninitialised): concurrent partitions work on disjoint [begin, end).
+  std::unique_ptr<PrimRef[]> scratch;
+  BVHArray<BVHNode> nodes;
   std::atomic<uint32_t> node_count{1};
   uint32_t block;
   int nb;
@@ -418,7 +446,7 @@ struct FastBuilder {
       roff[k] = r;
       r += std::min(end, begin + (k + 1) * kPartitionBlock) - (begin + k * kPartitionBlock) - parts[k].left;
     }
-    std::vector<PrimRef> tmp(n);
+    PrimRef* tmp = scratch.get() + begin;
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       uint32_t l = loff[k], rr = roff[k];
       const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
@@ -426,7 +454,7 @@ struct FastBuilder {
     });
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       const uint32_t b0 = k * kPartitionBlock, b1 = std::min(n, b0 + kPartitionBlock);
-      std::copy(tmp.begin() + b0, tmp.begin() + b1, refs.begin() + begin + b0);
+      std::copy(tmp + b0, tmp + b1, refs.begin() + begin + b0);
     });
     return begin + total_left;
   }
@@ -534,10 +562,10 @@ BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& 
   }
   BVH bvh;
   if (b.refs.empty()) return bvh;
+  if (options.parallel && b.refs.size() > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[b.refs.size()]);
   b.nodes.resize(2 * b.refs.size());
   b.build(0, 0, uint32_t(b.refs.size()), box, cbox, 0);
-  b.nodes.resize(b.node_count.load());
-  b.nodes.shrink_to_fit();
+  b.nodes.resize(b.node_count.load());  // no shrink-to-fit copy: the rest was never touched
   bvh.nodes = std::move(b.nodes);
   bvh.prim_order.resize(b.refs.size());
   for (size_t i = 0; i < b.refs.size(); ++i) {

@@ -3,10 +3,43 @@
 // contiguous range of the reordered primitives, an interior node its first
 // child (the second follows it). Used for the per-mesh BLAS and the TLAS.
 #pragma once
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
+
 #include "aabb.h"
 
 namespace tessera {
+
+// Allocator for the node and triangle block arrays: arrays of 2 MB
+// or more are 2 MB aligned and their whole 2 MB pages marked MADV_HUGEPAGE
+// before first touch, so that incoherent rays over a large mesh miss the TLB
+// far less often (Embree's "hugepages" option; the kernel may decline, which
+// only costs speed).
+void* bvh_alloc_bytes(size_t bytes);
+void bvh_free_bytes(void* p, size_t bytes);
+template <typename T>
+struct LargePageAllocator {
+  using value_type = T;
+  LargePageAllocator() = default;
+  template <typename U>
+  LargePageAllocator(const LargePageAllocator<U>&) {}
+  T* allocate(size_t n) { return static_cast<T*>(bvh_alloc_bytes(n * sizeof(T))); }
+  void deallocate(T* p, size_t n) { bvh_free_bytes(p, n * sizeof(T)); }
+  // resize() default-initialises (no zeroing of arrays that are written anyway).
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) { ::new (static_cast<void*>(p)) U; }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) { ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...); }
+  template <typename U>
+  bool operator==(const LargePageAllocator<U>&) const { return true; }
+  template <typename U>
+  bool operator!=(const LargePageAllocator<U>&) const { return false; }
+};
+template <typename T>
+using BVHArray = std::vector<T, LargePageAllocator<T>>;
+
 
 struct BVHNode {
   vec3 lo;
@@ -38,7 +71,7 @@ struct BuildOptions {
 };
 
 struct BVH {
-  std::vector<BVHNode> nodes;
+  BVHArray<BVHNode> nodes;
   std::vector<uint32_t> prim_order;  // prim_order[i] = input index of the i-th reordered primitive
 
   const AABB bounds() const { return nodes.empty() ? AABB{} : AABB{nodes[0].lo, nodes[0].hi}; }

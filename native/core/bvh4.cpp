@@ -3,33 +3,9 @@
 #include "simd_tri4.h"
 #include "wide_traverse.h"
 
-#include <sys/mman.h>
-
 #include <algorithm>
-#include <cstdlib>
-#include <new>
 
 namespace tessera {
-
-constexpr size_t kLargePage = size_t(2) << 20;
-
-// Arrays of at least one large page start on a 2 MB boundary and have their
-// whole large pages marked MADV_HUGEPAGE before first touch; the tail stays
-// in small pages, so no memory is wasted.
-void* bvh_alloc_bytes(size_t bytes) {
-  if (bytes < kLargePage) return ::operator new(bytes, std::align_val_t(64));
-  void* p = std::aligned_alloc(kLargePage, (bytes + kLargePage - 1) & ~(kLargePage - 1));
-  if (!p) throw std::bad_alloc();
-#ifdef MADV_HUGEPAGE
-  madvise(p, bytes & ~(kLargePage - 1), MADV_HUGEPAGE);
-#endif
-  return p;
-}
-
-void bvh_free_bytes(void* p, size_t bytes) {
-  if (bytes < kLargePage) ::operator delete(p, std::align_val_t(64));
-  else std::free(p);
-}
 
 namespace {
 

@@ -14,29 +14,6 @@
 
 namespace tessera {
 
-// Allocator for the traversed arrays (nodes, triangle blocks): arrays of 2 MB
-// or more are 2 MB aligned and their whole 2 MB pages marked MADV_HUGEPAGE
-// before first touch, so that incoherent rays over a large mesh miss the TLB
-// far less often (Embree's "hugepages" option; the kernel may decline, which
-// only costs speed).
-void* bvh_alloc_bytes(size_t bytes);
-void bvh_free_bytes(void* p, size_t bytes);
-template <typename T>
-struct LargePageAllocator {
-  using value_type = T;
-  LargePageAllocator() = default;
-  template <typename U>
-  LargePageAllocator(const LargePageAllocator<U>&) {}
-  T* allocate(size_t n) { return static_cast<T*>(bvh_alloc_bytes(n * sizeof(T))); }
-  void deallocate(T* p, size_t n) { bvh_free_bytes(p, n * sizeof(T)); }
-  template <typename U>
-  bool operator==(const LargePageAllocator<U>&) const { return true; }
-  template <typename U>
-  bool operator!=(const LargePageAllocator<U>&) const { return false; }
-};
-template <typename T>
-using BVHArray = std::vector<T, LargePageAllocator<T>>;
-
 // 128 bytes, two cache lines. Child boxes per axis as [lo x4][hi x4]; an
 // unused child has an inverted box (lo = +inf, hi = -inf), which no ray hits.
 struct alignas(64) BVH4Node {
