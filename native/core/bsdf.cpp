@@ -1,5 +1,7 @@
 #include "bsdf.h"
 
+#include "ggx_energy.h"
+
 namespace tessera {
 
 namespace {
@@ -57,6 +59,47 @@ vec3 ensure_valid_reflection(const vec3& ng, const vec3& wo, const vec3& n) {
   }
   const vec3 out = nn.x * x_axis + nn.y * ng;
   return is_finite(out) ? out : ng;
+}
+
+// Cycles' CLOSURE_WEIGHT_CUTOFF: closures lighter than this are left out.
+constexpr float kClosureCutoff = 1e-5f;
+
+float average(const vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
+vec3 saturate(const vec3& v) { return glm::clamp(v, vec3(0.0f), vec3(1.0f)); }
+
+// Average single-scattering Fresnel 2 int_0^1 F(mu, eta) mu dmu, Kulla and
+// Conty's fit (Cycles' fresnel_dielectric_Fss).
+float fresnel_dielectric_Fss(float eta) {
+  if (eta < 1.0f) return 0.997118f + eta * (0.1014f - eta * (0.965241f + eta * 0.130607f));
+  return (eta - 1.0f) / (4.08567f + 1.00071f * eta);
+}
+
+// F82-tint's b: the Schlick value at cos = 1/7 (about 82 degrees) scaled by
+// the tint (Cycles' fresnel_f82tint_B); and the model's average Fss.
+vec3 fresnel_f82tint_B(const vec3& F0, const vec3& tint) {
+  const float f = 6.0f / 7.0f, f5 = f * f * f * f * f;
+  const vec3 F_schlick = glm::mix(F0, vec3(1.0f), f5);
+  return F_schlick * (7.0f / (f5 * f)) * (vec3(1.0f) - tint);
+}
+vec3 fresnel_f82_Fss(const vec3& F0, const vec3& B) { return glm::mix(F0, vec3(1.0f), 1.0f / 21.0f) - B * (1.0f / 126.0f); }
+
+// The angular part G(theta) of the directional albedo of Fujii's
+// Oren-Nayar, E(mu) = pi A + B G(mu) (Cycles' bsdf_oren_nayar_G).
+float oren_nayar_G(float cos_theta) {
+  if (cos_theta < 1e-6f) return (0.5f * kPi - 2.0f / 3.0f) - cos_theta;
+  const float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+  const float theta = std::acos(std::clamp(cos_theta, -1.0f, 1.0f));
+  return sin_theta * (theta - 2.0f / 3.0f - sin_theta * cos_theta) +
+         2.0f / 3.0f * (sin_theta / cos_theta) * (1.0f - sin_theta * sin_theta * sin_theta);
+}
+
+// Cycles' closure_layering_weight: what a layer with albedo estimate
+// `albedo` (its weight included) leaves of `weight` for the layers below.
+vec3 layering_weight(const vec3& albedo, const vec3& weight) {
+  float m = 0.0f;
+  for (int i = 0; i < 3; ++i)
+    if (weight[i] != 0.0f) m = std::max(m, albedo[i] / weight[i]);
+  return weight * std::clamp(1.0f - m, 0.0f, 1.0f);
 }
 
 }  // namespace
@@ -130,7 +173,11 @@ void BSDF::add_closure(const Closure& c, bool back_face) {
   if (!(c.weight > 0.0f)) return;
   const vec3 color = glm::clamp(c.color, vec3(0.0f), vec3(1.0f));
   // Cycles drops closures of negligible weight (CLOSURE_WEIGHT_CUTOFF).
-  if (c.kind != ClosureKind::Principled && !(max_component(color) * c.weight > 1e-5f)) return;
+  if (c.kind != ClosureKind::Principled && !(max_component(color) * c.weight > kClosureCutoff)) return;
+  if (c.model != ShadingModel::Cycles3) {
+    add_closure_v4(c, back_face);
+    return;
+  }
   const float roughness = std::clamp(c.roughness, 0.0f, 1.0f);
   switch (c.kind) {
     case ClosureKind::Principled:
@@ -140,6 +187,7 @@ void BSDF::add_closure(const Closure& c, bool back_face) {
       // Cycles' bsdf_oren_nayar_setup; roughness 0 is Lambert (bsdf_diffuse).
       Lobe& l = add_lobe(Lobe::kOrenNayar, c.weight * luminance(color));
       l.tint = color * c.weight;
+      l.ms = vec3(0.0f);
       if (roughness > 0.0f) {
         const float div = 1.0f / (kPi + ((3.0f * kPi - 4.0f) / 6.0f) * roughness);
         l.a = div;
@@ -188,6 +236,268 @@ void BSDF::add_closure(const Closure& c, bool back_face) {
   }
 }
 
+// ---------------------------------------------------------------- Cycles 4.x
+
+BSDF::Lobe& BSDF::add_microfacet(Lobe::Fresnel fresnel, const vec3& weight, float alpha, float fresnel_ior,
+                                 const vec3& f0) {
+  Lobe& l = add_lobe(Lobe::kMicrofacet, 0.0f);
+  l.tint = weight;
+  l.ggx = GGX{alpha};
+  l.fresnel = fresnel;
+  l.fresnel_ior = fresnel_ior;
+  l.f0 = f0;
+  l.f82_b = vec3(0.0f);
+  l.energy_scale = 1.0f;
+  return l;
+}
+
+BSDF::Lobe& BSDF::add_glass(const vec3& weight, float alpha, float eta, const vec3& f0, const vec3& tint_r,
+                            const vec3& tint_t) {
+  Lobe& l = add_lobe(Lobe::kGlass, 0.0f);
+  l.tint = weight;
+  l.ggx = GGX{alpha};
+  l.fresnel = Lobe::kRealRemapped;
+  l.fresnel_ior = eta;
+  l.eta = eta;
+  l.f0 = saturate(f0);
+  l.tint_r = tint_r;
+  l.tint_t = tint_t;
+  l.energy_scale = 1.0f;
+  return l;
+}
+
+// Cycles' microfacet_fresnel for a reflection lobe at cos_i = wo.wm.
+vec3 BSDF::fresnel(const Lobe& l, float cos_i) const {
+  switch (l.fresnel) {
+    case Lobe::kFresnelOne:
+      return vec3(1.0f);
+    case Lobe::kDielectric:
+      return vec3(fresnel_dielectric(cos_i, l.fresnel_ior));
+    case Lobe::kRealRemapped: {
+      const float F0_real = ggx_energy::F0_from_ior(l.fresnel_ior);
+      const float s = std::clamp((fresnel_dielectric(cos_i, l.fresnel_ior) - F0_real) / (1.0f - F0_real), 0.0f, 1.0f);
+      return glm::mix(l.f0, vec3(1.0f), s);
+    }
+    case Lobe::kF82Tint: {
+      const float m = std::clamp(1.0f - cos_i, 0.0f, 1.0f), m5 = m * m * m * m * m;
+      return saturate(glm::mix(l.f0, vec3(1.0f), m5) - l.f82_b * (cos_i * m5 * m));
+    }
+  }
+  return vec3(1.0f);
+}
+
+// Glass: reflectance R = F tint_r and transmittance T = (1 - F) tint_t at the
+// microfacet (F is 1 under total internal reflection).
+void BSDF::glass_fresnel(const Lobe& l, float cos_i, vec3& R, vec3& T) const {
+  const vec3 F = fresnel(l, cos_i);
+  R = F * l.tint_r;
+  T = (vec3(1.0f) - F) * l.tint_t;
+}
+
+// Cycles' bsdf_microfacet_estimate_albedo: the lobe's albedo for this wo
+// without its weight: the Fresnel factor averaged over the lobe from the
+// tables for the generalised Schlick and F82 models, the factor at wo.N for
+// the rest (transmission included).
+vec3 BSDF::albedo_estimate(const Lobe& l) const {
+  const float mu = wo_.z;
+  const float rough = std::sqrt(l.ggx.alpha);
+  if (l.type == Lobe::kGlass) {
+    vec3 R, T;
+    glass_fresnel(l, mu, R, T);
+    if (max_component(R) > 0.0f)
+      R = glm::mix(l.f0, vec3(1.0f), ggx_energy::gen_schlick_ior_s(rough, mu, l.fresnel_ior)) * l.tint_r;
+    return R + T;
+  }
+  switch (l.fresnel) {
+    case Lobe::kFresnelOne:
+      return vec3(1.0f);
+    case Lobe::kDielectric:
+      if (l.fresnel_ior > 1.0f)
+        return vec3(glm::mix(ggx_energy::F0_from_ior(l.fresnel_ior), 1.0f,
+                             ggx_energy::gen_schlick_ior_s(rough, mu, l.fresnel_ior)));
+      return fresnel(l, mu);
+    case Lobe::kRealRemapped:
+      return glm::mix(l.f0, vec3(1.0f), ggx_energy::gen_schlick_ior_s(rough, mu, l.fresnel_ior));
+    case Lobe::kF82Tint:
+      return glm::mix(l.f0, vec3(1.0f), ggx_energy::schlick_s(rough, mu));
+  }
+  return vec3(1.0f);
+}
+
+// Cycles' microfacet_ggx_preserve_energy (Kulla and Conty 2017): the
+// single-scattering lobe loses 1 - E(mu) of the light; scaling it by 1 / E
+// gives that back for Fresnel 1, and a coloured Fresnel with average Fss
+// keeps (1 + Fms (1 - E) / E) E of it, Fms = Fss E_avg / (1 - Fss (1 - E_avg))
+// (the multiple bounces between microfacets saturate the colour).
+void BSDF::preserve_energy(Lobe& l, const vec3& Fss) {
+  const float mu = wo_.z;
+  const float rough = std::sqrt(l.ggx.alpha);
+  float E, E_avg;
+  if (l.type == Lobe::kGlass) {
+    E = ggx_energy::glass_E(rough, mu, l.eta);
+    E_avg = ggx_energy::glass_E_avg(rough, l.eta);
+  } else {
+    E = ggx_energy::E(rough, mu);
+    E_avg = ggx_energy::E_avg(rough);
+  }
+  E = std::max(E, 1e-6f);
+  const float missing = (1.0f - E) / E;
+  l.energy_scale = 1.0f + missing;
+  if (Fss != vec3(1.0f)) {
+    const vec3 Fms = Fss * E_avg / (vec3(1.0f) - Fss * (1.0f - E_avg));
+    l.tint *= (vec3(1.0f) + Fms * missing) / l.energy_scale;
+  }
+}
+
+// The Principled BSDF as Cycles 4.x builds it (svm_node_closure_bsdf,
+// CLOSURE_BSDF_PRINCIPLED_ID): layers from the top, each taking its albedo
+// estimate off the weight of those below. Sheen, subsurface, anisotropy and
+// thin film are not modelled (the add-on names them in a warning).
+void BSDF::add_principled_v2(const Closure& c, bool back_face) {
+  vec3 weight(c.weight);
+  const vec3 base = saturate(c.color);
+  const float metallic = std::clamp(c.metallic, 0.0f, 1.0f);
+  const float transmission = std::clamp(c.transmission, 0.0f, 1.0f);
+  const float roughness = std::clamp(c.roughness, 0.0f, 1.0f);
+  const float alpha = roughness * roughness;
+  const float ior = std::max(c.ior, 1e-5f);
+  const vec3 specular_tint = glm::max(c.specular_tint, vec3(0.0f));
+  const float mu = wo_.z;
+  // The sample weight of the lobe just added: its weight times its albedo estimate.
+  auto weigh_last = [this]() {
+    const Lobe& l = lobes_[num_lobes_ - 1];
+    sample_weight_[num_lobes_ - 1] = luminance(l.tint) * std::max(average(albedo_estimate(l)) * l.energy_scale, 0.02f);
+  };
+
+  // Coat: GGX with the dielectric Fresnel of its IOR, always energy-compensated.
+  const float coat = std::max(c.coat, 0.0f);
+  if (coat > kClosureCutoff) {
+    const float coat_roughness = std::clamp(c.coat_roughness, 0.0f, 1.0f);
+    const float coat_ior = std::max(c.coat_ior, 1.0f);
+    Lobe& l = add_microfacet(Lobe::kDielectric, coat * weight, sqr(coat_roughness), coat_ior, vec3(0.0f));
+    preserve_energy(l, vec3(fresnel_dielectric_Fss(coat_ior)));
+    weigh_last();
+    weight = layering_weight(l.tint * albedo_estimate(l), weight);
+    const vec3 coat_tint = glm::max(c.coat_tint, vec3(0.0f));
+    if (coat_tint != vec3(1.0f)) {
+      // Beer's law along the refracted view ray through a coat of unit thickness.
+      const float cos_t = std::sqrt(1.0f - sqr(1.0f / coat_ior) * (1.0f - mu * mu));
+      const vec3 absorbed(std::pow(coat_tint.x, 1.0f / cos_t), std::pow(coat_tint.y, 1.0f / cos_t),
+                          std::pow(coat_tint.z, 1.0f / cos_t));
+      weight *= glm::mix(vec3(1.0f), absorbed, coat);
+    }
+  }
+
+  // Metal: F82-tint Fresnel from the base colour, tinted at grazing angles by the specular tint.
+  if (metallic > kClosureCutoff) {
+    Lobe& l = add_microfacet(Lobe::kF82Tint, metallic * weight, alpha, 1.0f, base);
+    const vec3 f82 = glm::min(specular_tint, vec3(1.0f));
+    l.f82_b = f82 == vec3(1.0f) ? vec3(0.0f) : fresnel_f82tint_B(base, f82);
+    if (c.multiscatter) preserve_energy(l, fresnel_f82_Fss(l.f0, l.f82_b));
+    weigh_last();
+    weight *= 1.0f - metallic;
+  }
+
+  // Glass: reflection F, refraction (1 - F) sqrt(base) (the colour is met twice, entering and leaving).
+  if (transmission > kClosureCutoff) {
+    const float eta = back_face ? 1.0f / ior : ior;
+    const vec3 tint_t = glm::sqrt(base);
+    Lobe& l = add_glass(transmission * weight, alpha, eta, vec3(ggx_energy::F0_from_ior(ior)) * specular_tint,
+                        vec3(1.0f), tint_t);
+    if (c.multiscatter) preserve_energy(l, tint_t);
+    weigh_last();
+    weight *= 1.0f - transmission;
+  }
+
+  // Dielectric specular: F0 of the IOR scaled by 2 x Specular IOR Level, i.e. the IOR that has that F0.
+  float eta = ior;
+  float f0 = ggx_energy::F0_from_ior(ior);
+  const float level = std::max(c.specular, 0.0f);
+  if (level != 0.5f) {
+    f0 *= 2.0f * level;
+    eta = ggx_energy::ior_from_F0(f0);
+    if (ior < 1.0f) eta = 1.0f / eta;
+  }
+  if (eta != 1.0f) {
+    Lobe& l = add_microfacet(Lobe::kRealRemapped, weight, alpha, eta, saturate(f0 * specular_tint));
+    if (c.multiscatter) {
+      const float F0_real = ggx_energy::F0_from_ior(eta);
+      const float s = std::clamp((fresnel_dielectric_Fss(eta) - F0_real) / (1.0f - F0_real), 0.0f, 1.0f);
+      preserve_energy(l, glm::mix(l.f0, vec3(1.0f), s));
+    }
+    weigh_last();
+    weight = layering_weight(l.tint * albedo_estimate(l), weight);
+  }
+
+  // Diffuse: Lambert, or Oren-Nayar with the Diffuse Roughness (Blender 4.3 on).
+  const vec3 diffuse = base * weight;
+  if (max_component(diffuse) > 0.0f) {
+    Lobe& l = add_lobe(Lobe::kOrenNayar, luminance(diffuse));
+    l.tint = diffuse;
+    set_oren_nayar(l, std::clamp(c.diffuse_roughness, 0.0f, 1.0f), base, c.model == ShadingModel::Cycles4_3);
+  }
+}
+
+// Fujii's Oren-Nayar ("qualitative" model, Cycles' bsdf_oren_nayar_setup) with
+// roughness sigma (Lambert below the cutoff); with multiple_scattering, the
+// OpenPBR energy-preserving term Cycles 4.3 adds:
+// Ems (1 - E(wo)) (1 - E(wi)), Ems = albedo^2 E_avg / (1 - E_avg) / (pi (1 - albedo (1 - E_avg))).
+void BSDF::set_oren_nayar(Lobe& l, float sigma, const vec3& color, bool multiple_scattering) const {
+  l.ms = vec3(0.0f);
+  if (sigma < kClosureCutoff) {
+    l.a = kInvPi;
+    l.b = 0.0f;
+    return;
+  }
+  l.a = 1.0f / (kPi + sigma * (0.5f * kPi - 2.0f / 3.0f));
+  l.b = sigma * l.a;
+  if (multiple_scattering) {
+    const vec3 albedo = saturate(color);
+    const float E_avg = l.a * kPi + ((2.0f * kPi - 5.6f) / 3.0f) * l.b;
+    const vec3 Ems = kInvPi * albedo * albedo * (E_avg / (1.0f - E_avg)) / (vec3(1.0f) - albedo * (1.0f - E_avg));
+    const float E_o = l.a * kPi + l.b * oren_nayar_G(std::max(wo_.z, 0.0f));
+    l.ms = Ems * (1.0f - E_o);
+  }
+}
+
+// The other closures as Cycles 4.x sets them up.
+void BSDF::add_closure_v4(const Closure& c, bool back_face) {
+  const vec3 color = saturate(c.color);
+  const float roughness = std::clamp(c.roughness, 0.0f, 1.0f);
+  switch (c.kind) {
+    case ClosureKind::Principled:
+      add_principled_v2(c, back_face);
+      break;
+    case ClosureKind::Diffuse: {
+      Lobe& l = add_lobe(Lobe::kOrenNayar, c.weight * luminance(color));
+      l.tint = color * c.weight;
+      set_oren_nayar(l, roughness, color, c.model == ShadingModel::Cycles4_3);
+      break;
+    }
+    case ClosureKind::Glossy: {
+      Lobe& l = add_microfacet(Lobe::kFresnelOne, color * c.weight, roughness * roughness, 1.0f, vec3(1.0f));
+      if (c.multiscatter) preserve_energy(l, color);
+      sample_weight_[num_lobes_ - 1] = luminance(l.tint) * l.energy_scale + 1e-6f;
+      break;
+    }
+    case ClosureKind::Glass: {
+      // One closure: reflection or refraction chosen at the microfacet by its Fresnel factor.
+      const float ior = std::max(c.ior, 1e-5f);
+      Lobe& l = add_glass(vec3(c.weight), roughness * roughness, back_face ? 1.0f / ior : ior,
+                          vec3(ggx_energy::F0_from_ior(ior)), color, color);
+      if (c.multiscatter) preserve_energy(l, color);
+      sample_weight_[num_lobes_ - 1] = luminance(l.tint) * std::max(luminance(color), 0.02f) * l.energy_scale;
+      break;
+    }
+    case ClosureKind::Transparent: {
+      Lobe& l = add_lobe(Lobe::kTransparent, c.weight * luminance(color));
+      l.k = c.weight;
+      l.tint = color;
+      break;
+    }
+  }
+}
+
 BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world)
     : frame_(ensure_valid_reflection(ng, wo_world, ns)), ng_(ng), ns_(ns), wo_world_(wo_world) {
   wo_ = frame_.to_local(wo_world);
@@ -210,6 +520,7 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
       Lobe& l = lobes_[i];
       l.prob = sample_weight_[i] / total;
       l.is_delta = l.delta();
+      l.is_reflect = l.reflects();
       l.is_transmit = l.transmits();
       if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true;
     }
@@ -234,9 +545,11 @@ vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
       // Cycles' bsdf_oren_nayar (the "qualitative" model, Oren and Nayar 1994):
       // f = A + B max(0, cos(phi_i - phi_o)) sin(a) tan(b), written with dot products.
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
+      if (l.b <= 0.0f) return l.tint * l.a;
       float t = glm::dot(wi, wo) - wi.z * wo.z;
       if (t > 0.0f) t /= std::max(wi.z, wo.z) + std::numeric_limits<float>::min();
-      return l.tint * (l.a + l.b * t);
+      const float E_i = l.a * kPi + l.b * oren_nayar_G(wi.z);
+      return l.tint * (vec3(l.a + l.b * t) + l.ms * (1.0f - E_i));
     }
     case Lobe::kSpecular: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
@@ -263,6 +576,29 @@ vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
       // No 1/eta^2 radiance scaling, as in Cycles.
       return l.tint * (l.k * ft);
     }
+    case Lobe::kMicrofacet: {
+      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
+      const vec3 wm = glm::normalize(wi + wo);
+      return l.tint * fresnel(l, glm::dot(wo, wm)) *
+             (l.energy_scale * l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) / (4.0f * wi.z * wo.z));
+    }
+    case Lobe::kGlass: {
+      if (wo.z <= 0.0f || wi.z == 0.0f) return vec3(0.0f);
+      vec3 R, T;
+      if (wi.z > 0.0f) {
+        const vec3 wm = glm::normalize(wi + wo);
+        glass_fresnel(l, glm::dot(wo, wm), R, T);
+        return l.tint * R * (l.energy_scale * l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) / (4.0f * wi.z * wo.z));
+      }
+      vec3 wm = glm::normalize(wi * l.eta + wo);
+      if (wm.z < 0.0f) wm = -wm;
+      const float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
+      if (dot_i >= 0.0f || dot_o <= 0.0f) return vec3(0.0f);
+      glass_fresnel(l, dot_o, R, T);
+      const float denom = sqr(dot_i + dot_o / l.eta);
+      const float ft = l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
+      return l.tint * T * (l.energy_scale * ft);
+    }
     case Lobe::kTransparent:
       break;
   }
@@ -276,10 +612,33 @@ float BSDF::pdf_lobe(const Lobe& l, const vec3& wi) const {
     case Lobe::kOrenNayar:
       return wi.z > 0.0f ? wi.z * kInvPi : 0.0f;
     case Lobe::kSpecular:
-    case Lobe::kReflection: {
+    case Lobe::kReflection:
+    case Lobe::kMicrofacet: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
       vec3 wm = glm::normalize(wi + wo);
       return l.ggx.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm)));
+    }
+    case Lobe::kGlass: {
+      // The visible-normal density, times the probability of reflecting or
+      // refracting at that microfacet: avg(R) / avg(R + T).
+      if (wo.z <= 0.0f || wi.z == 0.0f) return 0.0f;
+      vec3 R, T;
+      if (wi.z > 0.0f) {
+        const vec3 wm = glm::normalize(wi + wo);
+        glass_fresnel(l, glm::dot(wo, wm), R, T);
+        const float sum = average(R + T);
+        if (!(sum > 0.0f)) return 0.0f;
+        return l.ggx.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm))) * (average(R) / sum);
+      }
+      vec3 wm = glm::normalize(wi * l.eta + wo);
+      if (wm.z < 0.0f) wm = -wm;
+      const float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
+      if (dot_i >= 0.0f || dot_o <= 0.0f) return 0.0f;
+      glass_fresnel(l, dot_o, R, T);
+      const float sum = average(R + T);
+      if (!(sum > 0.0f)) return 0.0f;
+      const float dwm_dwi = std::abs(dot_i) / sqr(dot_i + dot_o / l.eta);
+      return l.ggx.pdf_visible(wo, wm) * dwm_dwi * (average(T) / sum);
     }
     case Lobe::kRefraction: {
       if (wi.z >= 0.0f || wo.z <= 0.0f) return 0.0f;
@@ -303,7 +662,7 @@ vec3 BSDF::f(const vec3& wi_world) const {
   for (int i = 0; i < num_lobes_; ++i) {
     const Lobe& l = lobes_[i];
     // The geometric side decides reflection vs transmission (no light leaks).
-    if (l.prob == 0.0f || l.is_delta || l.is_transmit == reflect_side) continue;
+    if (l.prob == 0.0f || l.is_delta || !(reflect_side ? l.is_reflect : l.is_transmit)) continue;
     sum += eval_lobe(l, wi);
   }
   return sum;
@@ -315,7 +674,7 @@ float BSDF::pdf(const vec3& wi_world) const {
   float p = 0.0f;
   for (int i = 0; i < num_lobes_; ++i) {
     const Lobe& l = lobes_[i];
-    if (l.prob == 0.0f || l.is_delta || l.is_transmit == reflect_side) continue;
+    if (l.prob == 0.0f || l.is_delta || !(reflect_side ? l.is_reflect : l.is_transmit)) continue;
     p += l.prob * pdf_lobe(l, wi);
   }
   return p;
@@ -333,11 +692,16 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
   }
   if (chosen < 0) return false;
   const Lobe& l = lobes_[chosen];
+  // Where u_lobe fell within the chosen lobe's share: a fresh uniform number
+  // (glass chooses between reflection and refraction with it).
+  const float u_within = std::clamp((u_lobe - (acc - l.prob)) / l.prob, 0.0f, 0.99999994f);
   switch (l.type) {
     case Lobe::kBurley:
     case Lobe::kOrenNayar: s.kind = BSDFSample::kDiffuse; break;
     case Lobe::kSpecular:
-    case Lobe::kReflection: s.kind = BSDFSample::kGlossy; break;
+    case Lobe::kReflection:
+    case Lobe::kMicrofacet:
+    case Lobe::kGlass: s.kind = BSDFSample::kGlossy; break;
     case Lobe::kRefraction: s.kind = BSDFSample::kTransmission; break;
     case Lobe::kTransparent: s.kind = BSDFSample::kTransparent; break;
   }
@@ -353,6 +717,36 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
     s.delta = true;
     return max_component(s.f) > 0.0f;
   }
+  if (l.type == Lobe::kGlass) {
+    // Cycles 4.x: a visible normal, then reflection or refraction at it with
+    // probability avg(R) / avg(R + T).
+    const vec3 wm = l.delta() ? vec3(0, 0, 1) : l.ggx.sample_visible(wo_, u);
+    vec3 R, T;
+    glass_fresnel(l, glm::dot(wo_, wm), R, T);
+    const float sum = average(R + T);
+    if (!(sum > 0.0f)) return false;
+    const float p_reflect = average(R) / sum;
+    const bool refracted = u_within >= p_reflect;
+    if (refracted) {
+      if (!refract(wo_, wm, l.eta, &wi) || wi.z >= 0.0f) return false;
+      s.kind = BSDFSample::kTransmission;
+    } else {
+      wi = reflect(wo_, wm);
+      if (wi.z <= 0.0f) return false;
+    }
+    s.wi = frame_.to_world(wi);
+    if (refracted == same_side(s.wi)) return false;
+    if (l.delta()) {
+      s.f = l.tint * (refracted ? T : R) * (l.energy_scale / std::abs(wi.z));
+      s.pdf = l.prob * (refracted ? 1.0f - p_reflect : p_reflect);
+      s.delta = true;
+      return s.pdf > 0.0f && max_component(s.f) > 0.0f;
+    }
+    s.delta = false;
+    s.f = f(s.wi);
+    s.pdf = pdf(s.wi);
+    return s.pdf > 0.0f && max_component(s.f) > 0.0f;
+  }
   if (l.delta()) {
     if (l.type == Lobe::kRefraction) {
       if (!refract(wo_, vec3(0, 0, 1), l.eta, &wi)) return false;
@@ -362,7 +756,9 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
     s.wi = frame_.to_world(wi);
     if (l.transmits() == same_side(s.wi)) return false;
     const float cos_i = std::abs(wi.z);
-    vec3 weight = l.type == Lobe::kSpecular ? l.k * interpolate_fresnel(wo_.z, l.spec_ior, l.cspec0) : l.tint * l.k;
+    vec3 weight = l.type == Lobe::kSpecular     ? l.k * interpolate_fresnel(wo_.z, l.spec_ior, l.cspec0)
+                  : l.type == Lobe::kMicrofacet ? l.tint * fresnel(l, wo_.z) * l.energy_scale
+                                                : l.tint * l.k;
     s.f = weight / cos_i;
     s.pdf = l.prob;
     s.delta = true;
@@ -375,6 +771,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
       break;
     case Lobe::kSpecular:
     case Lobe::kReflection:
+    case Lobe::kMicrofacet:
       wi = reflect(wo_, l.ggx.sample_visible(wo_, u));
       if (wi.z <= 0.0f) return false;
       break;
@@ -383,6 +780,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
       if (!refract(wo_, wm, l.eta, &wi) || wi.z >= 0.0f) return false;
       break;
     }
+    case Lobe::kGlass:
     case Lobe::kTransparent:
       return false;
   }

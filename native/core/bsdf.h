@@ -1,6 +1,7 @@
 // The BSDF at a hit: the material's closures (material.h) expanded into a
-// fixed-size list of lobes, each with its weight, as Cycles' closure list:
-//   Principled (Cycles 3.x, principled v1), with its Cycles weights:
+// fixed-size list of lobes, each with its weight, as Cycles' closure list.
+// Each closure follows the Cycles of its ShadingModel. Cycles 3.x:
+//   Principled (principled v1), with its Cycles weights:
 //     diffuse   (1 - metallic)(1 - transmission) base  Burley diffuse with retro-reflection
 //     specular  1 - (1 - metallic) transmission         GGX, Fresnel interpolated from cspec0
 //     glass     (1 - metallic) transmission             GGX reflection F(wo) + refraction base (1 - F(wo))
@@ -8,6 +9,19 @@
 //   Glossy       GGX reflection with Fresnel 1, tinted by the colour
 //   Glass        GGX reflection F(wo) + refraction (1 - F(wo)), both tinted
 //   Transparent  the ray goes on unchanged (a delta lobe), tinted
+// Cycles 4.x (svm_node_closure_bsdf, bsdf_microfacet.h): GGX lobes with
+// height-correlated masking and the Fresnel factor at the microfacet;
+// Multiscatter GGX scales them by 1 / E(mu) (ggx_energy.h):
+//   Principled (principled v2), layer by layer from the top, each layer's
+//     albedo estimate taken off the weight of those below (closure_layering_weight):
+//     coat      GGX, dielectric Fresnel of the coat IOR, always energy-compensated; coat tint
+//     metal     metallic x: GGX, F82-tint Fresnel (F0 base colour, tint the specular tint)
+//     glass     (1 - metallic) transmission: GGX glass, reflection F, refraction (1 - F) sqrt(base)
+//     specular  GGX, real Fresnel remapped to F0 = F0(IOR) x 2 level x specular tint
+//     diffuse   the rest x base colour: Lambert, or Oren-Nayar with Diffuse Roughness
+//   Diffuse      Lambert, or Oren-Nayar (4.3 on: with its multiple-scattering term)
+//   Glossy       GGX reflection, Fresnel 1, tinted by the colour
+//   Glass        GGX glass: reflection F(wo.wm) + refraction 1 - F(wo.wm), both tinted
 // every closure scaled by its Mix/Add Shader weight. f and pdf are sums over
 // the lobes; one lobe is sampled per bounce, chosen by its weight times an
 // albedo estimate, so the lobes are combined by one-sample MIS (pbrt-v4, 9.x;
@@ -56,12 +70,24 @@ class BSDF {
       kReflection,  // GGX reflection: tint x k (a constant Fresnel is folded into k)
       kRefraction,  // GGX refraction with relative IOR eta: tint x k
       kTransparent, // straight on: tint x k
+      kMicrofacet,  // Cycles 4.x GGX reflection: tint x F(wo.wm) x energy_scale
+      kGlass,       // Cycles 4.x GGX glass: tint x (F tint_r | (1 - F) tint_t) x energy_scale
     } type;
+    // The Fresnel factor of kMicrofacet and kGlass (Cycles 4.x microfacet_fresnel).
+    enum Fresnel : uint8_t {
+      kFresnelOne,      // 1 (Glossy)
+      kDielectric,      // real dielectric Fresnel of fresnel_ior (coat)
+      kRealRemapped,    // the real Fresnel of fresnel_ior remapped from F0(ior)..1 to f0..1 (generalised Schlick)
+      kF82Tint,         // Schlick from f0 less b cos (1 - cos)^6 (Kutz et al., "Novel aspects of the Adobe
+                        // Standard Material")
+    } fresnel;
     // No default initialisers: the lobe array is left uninitialised and
     // whoever adds a lobe sets the fields its type reads (no cost per hit
     // for the rest): kBurley tint, a; kOrenNayar tint, a, b; kSpecular k,
     // ggx, cspec0, spec_ior; kReflection k, tint, ggx; kRefraction k, tint,
-    // ggx, eta; kTransparent k, tint.
+    // ggx, eta; kTransparent k, tint; kOrenNayar also ms; kMicrofacet tint,
+    // ggx, fresnel, f0, f82_b, fresnel_ior, energy_scale; kGlass tint, ggx,
+    // fresnel (kRealRemapped), f0, fresnel_ior, tint_r, tint_t, eta, energy_scale.
     float prob;
     float k;
     vec3 tint;
@@ -70,16 +96,32 @@ class BSDF {
     vec3 cspec0;
     float spec_ior;
     float eta;
-    bool is_delta, is_transmit;  // delta() and transmits(), cached by the constructor for f() and pdf()
+    vec3 ms;              // Oren-Nayar's multiple scattering, Ems (1 - E(wo)) (Cycles 4.3 on; else 0)
+    vec3 f0, f82_b;       // Fresnel at normal incidence; F82-tint's b
+    vec3 tint_r, tint_t;  // glass: reflection and transmission tints
+    float fresnel_ior;    // the IOR of kDielectric and kRealRemapped (relative: inverted on back faces for glass)
+    float energy_scale;   // Multiscatter GGX: 1 / E(mu) (else 1)
+    bool is_delta, is_reflect, is_transmit;  // cached by the constructor for f() and pdf()
     bool delta() const {
-      return type == kTransparent || ((type == kSpecular || type == kReflection || type == kRefraction) && ggx.alpha <= kSmoothAlpha);
+      return type == kTransparent || (type != kBurley && type != kOrenNayar && ggx.alpha <= kSmoothAlpha);
     }
-    bool transmits() const { return type == kRefraction || type == kTransparent; }
+    bool reflects() const { return type != kRefraction && type != kTransparent; }
+    bool transmits() const { return type == kRefraction || type == kTransparent || type == kGlass; }
   };
 
   Lobe& add_lobe(Lobe::Type type, float sample_weight);
   void add_principled(const Closure& c, bool back_face);
+  void add_principled_v2(const Closure& c, bool back_face);
   void add_closure(const Closure& c, bool back_face);
+  void add_closure_v4(const Closure& c, bool back_face);
+  // Cycles 4.x lobes (their weights, energy compensation and albedo estimates).
+  Lobe& add_microfacet(Lobe::Fresnel fresnel, const vec3& weight, float alpha, float fresnel_ior, const vec3& f0);
+  Lobe& add_glass(const vec3& weight, float alpha, float eta, const vec3& f0, const vec3& tint_r, const vec3& tint_t);
+  void preserve_energy(Lobe& l, const vec3& Fss);
+  void set_oren_nayar(Lobe& l, float sigma, const vec3& color, bool multiple_scattering) const;
+  vec3 fresnel(const Lobe& l, float cos_i) const;
+  void glass_fresnel(const Lobe& l, float cos_i, vec3& R, vec3& T) const;
+  vec3 albedo_estimate(const Lobe& l) const;
   vec3 eval_lobe(const Lobe& l, const vec3& wi) const;
   float pdf_lobe(const Lobe& l, const vec3& wi) const;
   bool same_side(const vec3& wi_world) const { return glm::dot(wi_world, ng_) > 0.0f; }

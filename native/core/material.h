@@ -18,9 +18,22 @@ struct TextureRef {
   bool valid() const { return texture >= 0; }
 };
 
+// Whose definitions of the closures to follow: Cycles changed them in
+// Blender 4.0, and the add-on picks the running Blender's (bpy.app.version),
+// per closure.
+enum class ShadingModel : uint8_t {
+  Cycles3,   // Blender 3.x: Principled v1 (Burley diffuse, interpolated Fresnel), separable Smith
+             // masking, Glass split by the Fresnel factor at wo
+  Cycles4,   // Blender 4.0 to 4.2: Principled v2 (layered: coat, metal with F82 tint, glass, dielectric
+             // specular over Lambert), height-correlated Smith masking, Fresnel at the microfacet,
+             // Multiscatter GGX as energy compensation (ggx_energy.h)
+  Cycles4_3, // Blender 4.3 on: as 4.0, and rough diffuse is the energy-preserving Oren-Nayar
+             // (Fujii's, with OpenPBR's multiple-scattering term); Principled Diffuse Roughness
+};
+
 // Blender's shader nodes that the core evaluates (bsdf.cpp).
 enum class ClosureKind : uint8_t {
-  Principled,   // Principled BSDF (Cycles 3.x)
+  Principled,   // Principled BSDF (Cycles 3.x, or 4.x's principled v2)
   Diffuse,      // Diffuse BSDF: Lambert, Oren-Nayar when roughness > 0
   Glossy,       // Glossy BSDF: GGX reflection, Fresnel 1, tinted by the colour
   Glass,        // Glass BSDF: GGX reflection F(wo) + refraction 1 - F(wo), both tinted
@@ -38,6 +51,13 @@ struct Closure {
   float specular = 0.5f;
   float ior = 1.45f;
   float transmission = 0.0f;
+  ShadingModel model = ShadingModel::Cycles3;
+  bool multiscatter = false;  // the Multiscatter GGX distribution (Glossy, Glass, Principled 4.x)
+  // Principled v2 only (Blender 4.x inputs; their defaults leave them out):
+  vec3 specular_tint{1.0f};
+  float coat = 0.0f, coat_roughness = 0.03f, coat_ior = 1.5f;
+  vec3 coat_tint{1.0f};
+  float diffuse_roughness = 0.0f;
 };
 
 constexpr int kMaxClosures = 8;
@@ -52,6 +72,12 @@ struct Material {
   float specular = 0.5f;
   float ior = 1.45f;
   float transmission = 0.0f;
+  ShadingModel model = ShadingModel::Cycles3;
+  bool multiscatter = false;
+  vec3 specular_tint{1.0f};
+  float coat = 0.0f, coat_roughness = 0.03f, coat_ior = 1.5f;
+  vec3 coat_tint{1.0f};
+  float diffuse_roughness = 0.0f;
   // Principled Alpha of closure 0 (Cycles: a transparent closure of weight
   // weight x (1 - alpha), and closure 0 scaled by alpha). The add-on folds a
   // constant alpha into the weights; this is for an alpha read per texel.
@@ -72,7 +98,32 @@ struct Material {
   int num_closures() const { return 1 + int(num_more); }
   Closure closure(int i) const {
     if (i > 0) return more[i - 1];
-    return Closure{kind, weight, base_color, metallic, roughness, specular, ior, transmission};
+    Closure c;
+    c.kind = kind;
+    c.weight = weight;
+    c.color = base_color;
+    c.metallic = metallic;
+    c.roughness = roughness;
+    c.specular = specular;
+    c.ior = ior;
+    c.transmission = transmission;
+    c.model = model;
+    c.multiscatter = multiscatter;
+    c.specular_tint = specular_tint;
+    c.coat = coat;
+    c.coat_roughness = coat_roughness;
+    c.coat_ior = coat_ior;
+    c.coat_tint = coat_tint;
+    c.diffuse_roughness = diffuse_roughness;
+    return c;
+  }
+  // Makes c closure 0 (its fields; the textures stay).
+  void set_first_closure(const Closure& c) {
+    kind = c.kind, weight = c.weight, base_color = c.color, metallic = c.metallic, roughness = c.roughness;
+    specular = c.specular, ior = c.ior, transmission = c.transmission, model = c.model;
+    multiscatter = c.multiscatter, specular_tint = c.specular_tint, coat = c.coat;
+    coat_roughness = c.coat_roughness, coat_ior = c.coat_ior, coat_tint = c.coat_tint;
+    diffuse_roughness = c.diffuse_roughness;
   }
   bool add_closure(const Closure& c) {
     if (num_more >= kMaxClosures - 1) return false;

@@ -28,6 +28,9 @@ struct GGX {
   float G1(const vec3& w) const { return 1.0f / (1.0f + lambda(w)); }
   // Cycles 3.x uses the separable (uncorrelated) Smith form G1(wo) G1(wi).
   float G(const vec3& wo, const vec3& wi) const { return G1(wo) * G1(wi); }
+  // Cycles 4.x the height-correlated form (Heitz 2014, "Understanding the
+  // Masking-Shadowing Function", eq. 99): 1 / (1 + Lambda(wo) + Lambda(wi)).
+  float G_correlated(const vec3& wo, const vec3& wi) const { return 1.0f / (1.0f + lambda(wo) + lambda(wi)); }
 
   // Density of visible normal wm seen from w (w.z > 0).
   float pdf_visible(const vec3& w, const vec3& wm) const {

@@ -143,7 +143,8 @@ def material_params(material, report, texture=None):
 
 
 def _surface_key(params):
-    keys = ("kind", "weight", "base_color", "metallic", "roughness", "specular", "ior", "transmission", "alpha")
+    keys = ("kind", "weight", "base_color", "metallic", "roughness", "specular", "ior", "transmission", "alpha",
+            "multiscatter", "specular_tint", "coat", "coat_roughness", "coat_ior", "coat_tint", "diffuse_roughness")
     return (tuple(params.get(k) for k in keys), tuple(tuple(sorted(c.items())) for c in params.get("closures", [])))
 
 
@@ -169,10 +170,25 @@ def _textured(ev, shader, name, params, key, texture):
     return ev.socket(socket)
 
 
+def shading_model(version=None):
+    """Whose closures the core follows, from the running Blender's version:
+    Cycles changed them in 4.0 (Principled v2, height-correlated masking,
+    Fresnel at the microfacet, energy-compensated Multiscatter GGX) and 4.3
+    (energy-preserving Oren-Nayar)."""
+    version = tuple(bpy.app.version) if version is None else tuple(version)
+    if version < (4, 0, 0):
+        return "CYCLES_3"
+    return "CYCLES_4" if version < (4, 3, 0) else "CYCLES_4_3"
+
+
+MODEL = shading_model()
+
 # Closure parameters in the core's order (add_material's keywords), with the
 # Principled defaults; the other kinds read base_color as their Color.
 _CLOSURE_DEFAULTS = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
-                         transmission=0.0)
+                         transmission=0.0, model=MODEL, multiscatter=False, specular_tint=(1.0, 1.0, 1.0),
+                         coat=0.0, coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
+                         diffuse_roughness=0.0)
 MAX_CLOSURES = 8  # core/material.h kMaxClosures
 
 # Shader nodes Tessera does not model, rendered as the closest one it does.
@@ -266,15 +282,18 @@ class _Flattener:
         elif t == 'BSDF_DIFFUSE':
             self.add(node, "DIFFUSE", weight, color='Color', roughness='Roughness')
         elif t in ('BSDF_GLOSSY', 'BSDF_ANISOTROPIC'):
-            self.distribution(node)
+            multiscatter = self.distribution(node)
             if t == 'BSDF_ANISOTROPIC':
                 self.approximated(node)
-            self.add(node, "GLOSSY", weight, color='Color', roughness='Roughness')
+            elif to_float(ev.input(node, 'Anisotropy', 0.0)) != 0.0:
+                ev.warn(f"the Anisotropy of '{node.name}' is not modelled; it is rendered isotropic.")
+            self.add(node, "GLOSSY", weight, color='Color', roughness='Roughness', multiscatter=multiscatter)
         elif t in ('BSDF_GLASS', 'BSDF_REFRACTION'):
-            self.distribution(node)
+            multiscatter = self.distribution(node)
             if t == 'BSDF_REFRACTION':
                 self.approximated(node)
-            self.add(node, "GLASS", weight, color='Color', roughness='Roughness', ior='IOR')
+            self.add(node, "GLASS", weight, color='Color', roughness='Roughness', ior='IOR',
+                     multiscatter=multiscatter and t == 'BSDF_GLASS')
         elif t == 'BSDF_TRANSPARENT':
             self.add(node, "TRANSPARENT", weight, color='Color')
         elif t == 'EMISSION':
@@ -296,10 +315,18 @@ class _Flattener:
         self.ev.warn(f"'{node.name}' ({node.bl_idname}) is not supported; it is rendered as {what}.")
 
     def distribution(self, node):
+        """Whether the node's microfacet distribution is Multiscatter GGX, which
+        Tessera models as Cycles 4.x does (energy compensation); on 3.x, and
+        for the distributions it does not model, a warning."""
         d = getattr(node, 'distribution', 'GGX')
+        if d == 'MULTI_GGX' and MODEL != "CYCLES_3":
+            return True
         if d not in ('GGX', 'SHARP'):
-            self.ev.warn(f"'{node.name}' uses the {d} microfacet distribution; Tessera renders GGX (single "
-                         f"scattering) instead.")
+            what = ("Cycles 3.x's random-walk Multiscatter GGX is not modelled" if d == 'MULTI_GGX'
+                    else f"the {d} microfacet distribution is not modelled")
+            self.ev.warn(f"'{node.name}': {what}; Tessera renders single-scattering GGX instead (rough "
+                         f"surfaces come out darker). Choose GGX to compare like with like.")
+        return False
 
     def _claim_textures(self, node):
         """Whether this node's inputs may use the core's per-texel textures
@@ -309,11 +336,11 @@ class _Flattener:
             return False
         return any(image_texture_node(s) is not None for s in node.inputs if s.is_linked)
 
-    def add(self, node, kind, weight, color=None, roughness=None, ior=None):
+    def add(self, node, kind, weight, color=None, roughness=None, ior=None, multiscatter=False):
         ev = self.ev
         claim = self._claim_textures(node)
         tex = self.texture if claim else None
-        c = dict(_CLOSURE_DEFAULTS, kind=kind, weight=weight)
+        c = dict(_CLOSURE_DEFAULTS, kind=kind, weight=weight, multiscatter=multiscatter)
         if color:
             c["base_color"] = to_color(_textured(ev, node, color, self.params, "base_color", tex))
         if roughness:
@@ -338,6 +365,11 @@ class _Flattener:
         c["specular"] = to_float(ev.input(node, _find(node, "specular")))
         c["ior"] = to_float(ev.input(node, 'IOR', 1.45))
         c["transmission"] = to_float(ev.input(node, _find(node, "transmission")))
+        if MODEL == "CYCLES_3":
+            if getattr(node, 'distribution', 'GGX') == 'MULTI_GGX':
+                self.distribution(node)
+        else:
+            self.principled_v2(node, c)
         # Alpha (Cycles: Mix Shader of a white Transparent BSDF by 1 - alpha):
         # per texel when an image drives it directly, else folded into weights.
         alpha_tex = image_texture_node(node.inputs['Alpha']) if (tex is not None and 'Alpha' in node.inputs) else None
@@ -365,6 +397,34 @@ class _Flattener:
             self.textured = len(self.closures)
         self.closures.append(c)
 
+    def principled_v2(self, node, c):
+        """The Principled v2 inputs (Blender 4.x) the core models: distribution,
+        specular tint, coat, diffuse roughness; the ones it does not, when they
+        are in use, named in a warning."""
+        ev = self.ev
+        c["multiscatter"] = getattr(node, 'distribution', 'MULTI_GGX') == 'MULTI_GGX'
+        c["specular_tint"] = to_color(ev.input(node, 'Specular Tint', (1.0, 1.0, 1.0)))
+        c["coat"] = to_float(ev.input(node, 'Coat Weight', 0.0))
+        if c["coat"] > 0.0:
+            c["coat_roughness"] = to_float(ev.input(node, 'Coat Roughness', 0.03))
+            c["coat_ior"] = to_float(ev.input(node, 'Coat IOR', 1.5))
+            c["coat_tint"] = to_color(ev.input(node, 'Coat Tint', (1.0, 1.0, 1.0)))
+            if 'Coat Normal' in node.inputs and _linked_node(node.inputs['Coat Normal']) is not None:
+                ev.warn(f"the Coat Normal of '{node.name}' is ignored; the coat uses the surface normal.")
+        c["diffuse_roughness"] = to_float(ev.input(node, 'Diffuse Roughness', 0.0))
+        unsupported = [(name, what) for name, what in (
+            ('Subsurface Weight', "subsurface scattering (rendered as diffuse)"),
+            ('Sheen Weight', "sheen (left out)"),
+            ('Anisotropic', "anisotropy (rendered isotropic)"),
+            ('Thin Film Thickness', "thin-film iridescence (left out)"))
+            if name in node.inputs and to_float(ev.input(node, name, 0.0)) > 0.0]
+        if unsupported:
+            ev.warn(f"'{node.name}' uses " + ", ".join(w for _, w in unsupported) + ", which Tessera does not "
+                    f"model yet.")
+        if c["coat"] > 0.0 and to_float(ev.input(node, 'Emission Strength', 0.0)) > 0.0:
+            ev.warn(f"'{node.name}' has emission under a coat: Cycles dims it by the coat's reflectance (a few "
+                    f"percent), Tessera does not.")
+
     def result(self):
         """Closure 0 (the textured one first) and the rest, at most MAX_CLOSURES."""
         closures = [c for c in self.closures if c["weight"] > 0.0]
@@ -382,7 +442,7 @@ class _Flattener:
 
 def _side_params(material, report, backfacing, texture=None):
     params = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
-                  transmission=0.0, emission_front=(0.0, 0.0, 0.0))
+                  transmission=0.0, emission_front=(0.0, 0.0, 0.0), model=MODEL)
     if not material.use_nodes or material.node_tree is None:
         params["base_color"] = tuple(material.diffuse_color)[:3]
         params["metallic"] = material.metallic
@@ -407,8 +467,8 @@ def _side_params(material, report, backfacing, texture=None):
             params[key] = first.get(key, _CLOSURE_DEFAULTS[key])
         if "alpha" in first:
             params["alpha"] = float(first["alpha"])
-        params["closures"] = [{k: (float(v) if isinstance(v, (int, float)) else v) for k, v in c.items()
-                               if k != "alpha"} for c in closures[1:]]
+        params["closures"] = [{k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
+                               for k, v in c.items() if k != "alpha"} for c in closures[1:]]
     else:  # only emission, or nothing: no scattering
         params.update(weight=0.0, base_color=(0.0, 0.0, 0.0), specular=0.0)
     if "textures" in params and backfacing:
