@@ -52,7 +52,7 @@ ap.add_argument("--bounce-samples", type=int, default=64)
 ap.add_argument("--adaptive-scenes", nargs="*", default=["veach_mis.blend", "modern_hall.blend"])
 ap.add_argument("--adaptive-budget-samples", type=int, nargs="+", default=[64],
                 help="time budgets = render time of a uniform Tessera render at these many samples")
-ap.add_argument("--adaptive-threshold", type=float, default=0.01)
+ap.add_argument("--adaptive-threshold", type=float, nargs="+", default=[0.01])
 ap.add_argument("--adaptive-min-samples", type=int, default=0)
 ap.add_argument("--adaptive-seeds", type=int, default=1,
                 help="renders per method (seeds 0..N-1); the table shows sqrt of their mean MSE")
@@ -161,7 +161,7 @@ for path in args.scenes:
             _, budget_wall, st = run(path, "TESSERA", budget_spp, args.bounces)
             budget = st["render_seconds"]
             res = {}
-            for label, thr in (("uniform", 0.0), ("adaptive", args.adaptive_threshold)):
+            for label, thr in [("uniform", 0.0)] + [(f"adaptive {t}", t) for t in args.adaptive_threshold]:
                 runs = []
                 for seed in range(args.adaptive_seeds):
                     img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, seed=seed, time_limit=budget,
@@ -170,7 +170,8 @@ for path in args.scenes:
                                          time_limit=budget, seed=seed))
                 res[label] = dict(runs[0], rmse_own=math.sqrt(sum(r["rmse_own"] ** 2 for r in runs) / len(runs)),
                                   mean_samples=sum(r["mean_samples"] for r in runs) / len(runs))
-            adaptive.append((budget, res["uniform"], res["adaptive"], budget_spp))
+            for t in args.adaptive_threshold:
+                adaptive.append((budget, res["uniform"], res[f"adaptive {t}"], budget_spp, t))
 
     summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive))
 
@@ -243,7 +244,7 @@ for path in args.scenes:
             lines.append(f"| {s['name']} | {s['c64']['rmse_own']:.5f} | {s['c64']['seconds']:.2f} | "
                          f"{s['ratio']:.2f} | {t64['rmse_own']:.5f} / {t64['rmse_other']:.5f} | {s['c64']['rmse_other']:.5f} |")
     lines += ["", "## Tessera's error estimate against the true error", "",
-              "Estimated relative RMSE (two independent half-sample streams, `Film::estimated_relative_error`) over "
+              "Estimated relative RMSE (independent replicates of a sparse pixel grid, `Film::estimated_relative_error`) over "
               "the true relative RMSE (RMSE / mean of Tessera's reference, which adds the reference's own noise).", "",
               "| scene | " + " | ".join(f"{n} spp" for n in args.ladder) + " |",
               "|---|" + "---|" * len(args.ladder)]
@@ -251,13 +252,13 @@ for path in args.scenes:
         lines.append(f"| {s['name']} | " + " | ".join(f"{r['est_over_true']:.2f}" for r in s["ladder"]["TESSERA"]) + " |")
     lines += ["", "## Adaptive against uniform sampling at the same time budget (Tessera)", "",
               "Budget: Tessera's render time at N uniform samples; both runs get it as time limit. Adaptive: "
-              f"noise threshold {args.adaptive_threshold}, min samples {args.adaptive_min_samples or 'automatic'}. "
+              f"min samples {args.adaptive_min_samples or 'automatic'}. "
               f"RMSE against Tessera's reference, sqrt of the mean MSE over {args.adaptive_seeds} seed(s).", "",
-              "| scene | budget (N spp) | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
-              "|---|---|---|---|---|---|---|---|"]
+              "| scene | budget (N spp) | noise threshold | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for s in summary:
-        for b, u, a, n in s["adaptive"]:
-            lines.append(f"| {s['name']} | {n} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
+        for b, u, a, n, t in s["adaptive"]:
+            lines.append(f"| {s['name']} | {n} | {t} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
                          f"{a['rmse_own'] / u['rmse_own']:.2f} | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} |")
     lines += ["", "## Runs", "",
               "| scene | engine | ladder | samples | bounces | s | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
