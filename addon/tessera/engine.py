@@ -165,7 +165,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             return
         self.update_stats("", "Tessera: exporting scene")
         try:
-            scene_core, stats, report = export_scene(depsgraph, width, height, self.cancel_requested)
+            scene_core, stats, report = export_scene(depsgraph, width, height, self.cancel_requested,
+                                                     self.camera_override)
         except ExportError as e:
             self.report({'ERROR'}, str(e))
             return

@@ -25,14 +25,15 @@ class Report:
             self.warnings.append(message)
 
 
-def export_scene(depsgraph, width, height, is_cancelled=lambda: False):
-    """Returns (core Scene, stats dict, Report). Raises ExportError."""
+def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_override=None):
+    """Returns (core Scene, stats dict, Report). Raises ExportError.
+    camera_override: the camera to render through instead of the scene's."""
     t0 = time.perf_counter()
     report = Report()
     scene_core = core.native.Scene()
     bl_scene = depsgraph.scene
 
-    cam = camera.export_camera(depsgraph, width, height, report)
+    cam = camera.export_camera(depsgraph, width, height, report, camera_override)
     if cam is None:
         raise ExportError(
             f"Scene '{bl_scene.name}' has no active camera. Add a camera and make it active "

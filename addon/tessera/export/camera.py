@@ -6,12 +6,15 @@ radius focal length / (2 f-stop), focus distance along the view axis)."""
 import numpy as np
 
 
-def export_camera(depsgraph, width, height, report=None):
-    """Returns the keyword arguments of Scene.set_camera, or None without a camera."""
+def export_camera(depsgraph, width, height, report=None, camera_override=None):
+    """Returns the keyword arguments of Scene.set_camera, or None without a
+    camera. camera_override (RenderEngine.camera_override: a sequencer scene
+    strip's camera, for one) replaces the scene's camera, as in Cycles' sync."""
     scene = depsgraph.scene
-    if scene.camera is None:
+    camera_object = camera_override or scene.camera
+    if camera_object is None:
         return None
-    cam_obj = scene.camera.evaluated_get(depsgraph)
+    cam_obj = camera_object.evaluated_get(depsgraph)
     # Camera scale does not change the view (Cycles removes it too).
     matrix = np.array(cam_obj.matrix_world.normalized(), dtype=np.float32)
     if cam_obj.type != 'CAMERA':
