@@ -109,6 +109,7 @@ void DataPasses::configure(uint32_t mask, size_t n, const Camera& camera) {
   };
   size(kPassDepth, depth_);
   size(kPassDenoisingDepth, denoising_depth_);
+  depth_count_.assign((mask_ & kPassDepth) ? n : 0, 0);
   size(kPassNormal, normal_);
   size(kPassDiffuseColor, diffuse_color_);
   size(kPassEmission, emission_);
@@ -125,7 +126,10 @@ void DataPasses::configure(uint32_t mask, size_t n, const Camera& camera) {
 void DataPasses::add(size_t i, const FirstHit& h) {
   if (h.hit) {
     // Cycles' camera_z_depth: the hit's z in camera space.
-    if (mask_ & kPassDepth) depth_[i] += glm::dot(h.position - camera_origin_, camera_forward_);
+    if (mask_ & kPassDepth) {
+      depth_[i] += glm::dot(h.position - camera_origin_, camera_forward_);
+      ++depth_count_[i];
+    }
     if (mask_ & kPassNormal) normal_[i] += h.normal;
     if (mask_ & kPassDiffuseColor) diffuse_color_[i] += h.diffuse_color;
     if (mask_ & kPassEmission) emission_[i] += h.emission;
@@ -148,7 +152,10 @@ void DataPasses::resolve(size_t i, int n, uint32_t pass, float* out) const {
   switch (pass) {
     case kPassDepth:
       // Cycles' film_get_pass_pixel_depth: 1e10 where no sample hit anything.
-      out[0] = depth_[i] == 0.0f ? 1e10f : depth_[i] * scale;
+      // The mean over the samples that found a surface (Cycles keeps its
+      // first sample's): samples that missed, or scattered off a surface
+      // below the pass alpha threshold, would pull it towards 0.
+      out[0] = depth_count_[i] == 0 ? 1e10f : depth_[i] / float(depth_count_[i]);
       break;
     case kPassDenoisingDepth: out[0] = denoising_depth_[i] * scale; break;
     case kPassNormal: put3(normal_); break;

@@ -115,6 +115,7 @@ class DataPasses {
   uint32_t mask_ = 0;
   vec3 camera_origin_{0.0f}, camera_x_{1, 0, 0}, camera_y_{0, 1, 0}, camera_forward_{0, 0, -1};
   std::vector<float> depth_, denoising_depth_;
+  std::vector<int> depth_count_;  // samples that found a surface for Depth
   std::vector<vec3> normal_, diffuse_color_, emission_, denoising_normal_, denoising_albedo_;
 };
 

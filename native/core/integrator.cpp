@@ -218,6 +218,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       continue;
     }
     beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+    if (first) first->scattered();
     prev_bsdf_pdf = bs.pdf;
     prev_p = si.p;
     prev_n = ns;

@@ -48,6 +48,9 @@ struct RenderOptions {
   // Render passes besides Combined to write (passes.h, PassBits); 0: none,
   // and the integrator records nothing for them.
   uint32_t passes = 0;
+  // Blender's pass alpha threshold: Depth, Normal and Diffuse Color are
+  // those of the first surface at least this opaque (passes.h, FirstHit).
+  float pass_alpha_threshold = 0.5f;
   // Region of the full frame to render, in pixels from the bottom-left
   // (Blender's border render); x1 <= x0 means the whole frame.
   int region_x0 = 0, region_y0 = 0, region_x1 = 0, region_y1 = 0;

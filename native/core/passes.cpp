@@ -40,12 +40,15 @@ void FirstHit::surface(const Ray& ray, float t, const SurfaceInteraction& si, co
   // Cycles flips the shading normal to the side the ray arrived from.
   const vec3 n = si.back_face ? -si.ns : si.ns;
   const ClosureAlbedo a = closure_albedo(m);
-  if (!hit) {
+  if (!emission_done) {
+    emission_done = true;
+    emission = le;
+  }
+  if (!hit && camera_ray && (alpha_threshold <= 0.0f || !m.may_be_transparent() || 1.0f - average(m.transparency()) >= alpha_threshold)) {
     hit = true;
     position = ray.o + t * ray.d;
     normal = n;
     diffuse_color = a.diffuse_color;
-    emission = le;
   }
   if (denoising_done) return;
   denoising_albedo += denoising_throughput * le;

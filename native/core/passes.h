@@ -57,17 +57,28 @@ ClosureAlbedo closure_albedo(const Material& m);
 // What one camera sample records for the passes, filled by Li (integrator.h)
 // at each surface until complete().
 struct FirstHit {
-  explicit FirstHit(uint32_t passes)
-      : denoising_done((passes & (kPassDenoisingNormal | kPassDenoisingAlbedo | kPassDenoisingDepth)) == 0) {}
-  bool complete() const { return hit && denoising_done; }
+  // alpha_threshold: Blender's pass alpha threshold (View Layer > Passes):
+  // Depth, Normal and Diffuse Color come from the first surface at least this
+  // opaque (1 - average transparency), as Cycles' film_write_data_passes;
+  // 0 takes the first surface whatever its alpha.
+  explicit FirstHit(uint32_t passes, float alpha_threshold = 0.0f)
+      : denoising_done((passes & (kPassDenoisingNormal | kPassDenoisingAlbedo | kPassDenoisingDepth)) == 0),
+        alpha_threshold(alpha_threshold) {}
+  bool complete() const { return (hit || !camera_ray) && denoising_done; }
   // A surface the path reached along ray at distance t; le: its emission
   // towards the ray.
   void surface(const Ray& ray, float t, const SurfaceInteraction& si, const Material& m, const vec3& le);
   // The path left the scene; le: the world's radiance along it.
   void miss(const vec3& le);
+  // The path scattered off a surface (not straight through a transparent
+  // one): it is no longer the camera ray, whose first surface at least
+  // alpha_threshold opaque the data passes wanted; they get nothing now.
+  void scattered() { camera_ray = false; }
 
   bool hit = false;
   vec3 position{0.0f}, normal{0.0f}, diffuse_color{0.0f}, emission{0.0f};
+  bool emission_done = false;  // the first surface's emission, whatever its alpha
+  bool camera_ray = true;      // the path has only passed transparent surfaces so far
   bool denoising_done;
   // Cycles adds the emission and world seen before the feature vertex (at
   // it included) to the albedo (film_write_emission_or_background_pass),
@@ -75,6 +86,7 @@ struct FirstHit {
   vec3 denoising_normal{0.0f}, denoising_albedo{0.0f};  // normal in world space here
   float denoising_depth = 0.0f;
   vec3 denoising_throughput{1.0f};  // specular albedos passed before the feature vertex
+  float alpha_threshold;
 };
 
 }  // namespace tessera

@@ -48,7 +48,7 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
         if (!data_passes_.mask()) {
           film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
         } else {
-          FirstHit first(data_passes_.mask());
+          FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
           film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_, &first));
           data_passes_.add(i, first);
         }

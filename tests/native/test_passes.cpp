@@ -36,11 +36,12 @@ struct Rendered {
   std::vector<std::vector<float>> passes;  // by PassBits bit index
 };
 
-Rendered render(const Scene& s, uint32_t passes, int spp = 8) {
+Rendered render(const Scene& s, uint32_t passes, int spp = 8, float alpha_threshold = 0.5f) {
   RenderOptions opt;
   opt.samples = spp;
   opt.max_bounces = 2;
   opt.passes = passes;
+  opt.pass_alpha_threshold = alpha_threshold;
   RenderSession session(s, opt);
   session.render();
   Rendered r{session.pixels(), {}};
@@ -167,5 +168,41 @@ TEST(Passes, DenoisingAlbedoLooksThroughAMirror) {
   for (int k = 0; k < 3; ++k) {
     EXPECT_NEAR(r.passes[5][3 * centre + k], mirror.base_color[k] * back.base_color[k], 1e-3f) << k;
     EXPECT_NEAR(r.passes[2][3 * centre + k], 0.0f, 1e-6f);  // a metal has no diffuse closure
+  }
+}
+
+// Blender's pass alpha threshold: Depth, Normal and Diffuse Color come from
+// the first surface at least that opaque along the camera ray (Cycles'
+// film_write_data_passes); a sample that scatters off a more transparent
+// surface records none. Emission stays that of the first surface.
+TEST(Passes, AlphaThresholdLooksThroughMostlyTransparentSurfaces) {
+  Scene s;
+  Material floor;
+  floor.base_color = vec3(0.2f, 0.4f, 0.6f);
+  floor.roughness = 1.0f;
+  Material veil;  // 30% opaque, white, over the middle of the floor at height 1
+  veil.base_color = vec3(1.0f);
+  veil.roughness = 1.0f;
+  veil.alpha = 0.3f;
+  floor_scene(s, floor);
+  s.materials.push_back(veil);
+  fixtures::add_quad(s, {-2, -2, 1}, {2, -2, 1}, {2, 2, 1}, {-2, 2, 1}, uint32_t(s.materials.size() - 1));
+  s.commit();
+  const int inner = 4;  // pixels well inside the veil (it spans +-2 at depth 2: 6 px each side of the centre)
+  for (float threshold : {0.5f, 0.2f, 0.0f}) {
+    const Rendered r = render(s, kPassDepth | kPassDiffuseColor, 64, threshold);
+    const int c = s.camera.width / 2;
+    for (int y = c - inner; y < c + inner; ++y)
+      for (int x = c - inner; x < c + inner; ++x) {
+        const size_t i = size_t(y) * s.camera.width + x;
+        const float depth = r.passes[0][i];
+        const float* diffcol = &r.passes[2][3 * i];
+        if (threshold > 0.3f) {
+          EXPECT_NEAR(depth, 3.0f, 1e-3f) << "threshold " << threshold;  // the floor, through the veil
+        } else {
+          EXPECT_NEAR(depth, 2.0f, 1e-3f) << "threshold " << threshold;  // the veil
+        }
+        EXPECT_GT(diffcol[0], 0.0f);
+      }
   }
 }
