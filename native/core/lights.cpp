@@ -69,6 +69,21 @@ float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 cor
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
 
+// How sample() samples area light l from p, deciding for pdf_area() too: a
+// rectangle seen from in front at a solid angle of at least
+// kMinSphericalSampleArea uniformly in that solid angle (Urena et al. 2013,
+// as Cycles), in r; anything else (ellipses, far or tiny rectangles) by area.
+// Close to a large rectangle, area sampling's 1/d^2 weights were fireflies.
+bool rectangle_by_solid_angle(const Light& l, const vec3& p, SphericalRectangle* r) {
+  if (l.ellipse) return false;
+  const vec3 to_p = p - l.position;
+  if (!(glm::dot(to_p, l.direction) > 0.0f)) return false;  // behind: it receives nothing
+  const float d = glm::length(to_p) - glm::length(l.axis_u + l.axis_v);
+  if (d > 0.0f && l.area < kMinSphericalSampleArea * d * d) return false;
+  if (!r->init(p, l.position - l.axis_u - l.axis_v, 2.0f * l.axis_u, 2.0f * l.axis_v)) return false;
+  return r->solid_angle() >= kMinSphericalSampleArea;
+}
+
 float light_power(const Light& l, float scene_radius) {
   float lum = luminance(l.radiance);
   switch (l.type) {
@@ -301,8 +316,15 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       return true;
     }
     case LightType::Area: {
-      vec2 s = l.ellipse ? sample_uniform_disk_concentric(u) : 2.0f * u - vec2(1.0f);
-      vec3 q = l.position + s.x * l.axis_u + s.y * l.axis_v;
+      SphericalRectangle rect;
+      const bool by_solid_angle = rectangle_by_solid_angle(l, p, &rect);
+      vec3 q;
+      if (by_solid_angle) {
+        q = rect.sample(u);
+      } else {
+        const vec2 s = l.ellipse ? sample_uniform_disk_concentric(u) : 2.0f * u - vec2(1.0f);
+        q = l.position + s.x * l.axis_u + s.y * l.axis_v;
+      }
       vec3 w = q - p;
       float dist2 = glm::dot(w, w);
       if (dist2 <= 0.0f) return false;
@@ -311,7 +333,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       float cos_l = -glm::dot(ls.wi, l.direction);
       if (cos_l <= 0.0f) return false;  // area lights emit from their front only
       ls.li = l.radiance;
-      ls.pdf = pmf * dist2 / (cos_l * l.area);
+      ls.pdf = by_solid_angle ? pmf / rect.solid_angle() : pmf * dist2 / (cos_l * l.area);
       return true;
     }
     default:
@@ -334,6 +356,8 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
 
 float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
   if (cos_l <= 0.0f) return 0.0f;
+  SphericalRectangle rect;
+  if (rectangle_by_solid_angle(lights_[light], p, &rect)) return selection_pmf(light, p, n) / rect.solid_angle();
   return selection_pmf(light, p, n) * dist * dist / (cos_l * lights_[light].area);
 }
 

@@ -50,6 +50,48 @@ bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, floa
                     : sample_spherical_triangle_in<float>(a, b, c, area, u, w);
 }
 
+bool SphericalRectangle::init(const vec3& o_, const vec3& corner, const vec3& ex, const vec3& ey) {
+  o = o_;
+  const float exl = glm::length(ex), eyl = glm::length(ey);
+  if (!(exl > 0.0f && eyl > 0.0f)) return false;
+  x = ex / exl, y = ey / eyl, z = glm::cross(x, y);
+  const vec3 d = corner - o;
+  z0 = glm::dot(d, z);
+  if (z0 > 0.0f) z = -z, z0 = -z0;  // the frame's z points away from the rectangle
+  if (!(z0 < 0.0f)) return false;
+  x0 = glm::dot(d, x), y0 = glm::dot(d, y);
+  x1 = x0 + exl, y1 = y0 + eyl;
+  // Normals of the planes through o and each edge; the interior angles of
+  // the spherical quad are the angles between neighbouring ones.
+  const vec3 v00(x0, y0, z0), v01(x0, y1, z0), v10(x1, y0, z0), v11(x1, y1, z0);
+  const vec3 n0 = glm::normalize(glm::cross(v00, v10)), n1 = glm::normalize(glm::cross(v10, v11));
+  const vec3 n2 = glm::normalize(glm::cross(v11, v01)), n3 = glm::normalize(glm::cross(v01, v00));
+  if (!(is_finite(n0) && is_finite(n1) && is_finite(n2) && is_finite(n3))) return false;
+  auto angle = [](const vec3& a, const vec3& b) { return std::acos(std::clamp(-glm::dot(a, b), -1.0f, 1.0f)); };
+  const float g0 = angle(n0, n1), g1 = angle(n1, n2), g2 = angle(n2, n3), g3 = angle(n3, n0);
+  b0 = n0.z, b1 = n2.z;
+  k = 2.0f * kPi - g2 - g3;
+  S = g0 + g1 - k;  // the angle excess: the solid angle
+  return S > 0.0f && std::isfinite(S);
+}
+
+vec3 SphericalRectangle::sample(vec2 u) const {
+  // u.x: the sub-rectangle [x0, xu] of solid angle u.x S, solved for xu.
+  const float au = u.x * S + k;
+  const float sin_au = std::sin(au), cos_au = std::cos(au);
+  const float fu = (cos_au * b0 - b1) / sin_au;
+  float cu = std::copysign(1.0f, fu) / std::sqrt(fu * fu + b0 * b0);
+  cu = std::clamp(std::isfinite(cu) ? cu : 0.0f, -1.0f, 1.0f);
+  float xu = -(cu * z0) / safe_sqrt(1.0f - cu * cu);
+  xu = std::clamp(std::isfinite(xu) ? xu : x1, x0, x1);
+  // u.y: uniform in the height h (cosine to the y axis) along that column.
+  const float dd = std::sqrt(xu * xu + z0 * z0);
+  const float h0 = y0 / std::sqrt(dd * dd + y0 * y0), h1 = y1 / std::sqrt(dd * dd + y1 * y1);
+  const float hv = h0 + u.y * (h1 - h0), hv2 = hv * hv;
+  const float yv = hv2 < 1.0f - 1e-6f ? hv * dd / std::sqrt(1.0f - hv2) : y1;
+  return o + xu * x + std::clamp(yv, y0, y1) * y + z0 * z;
+}
+
 AliasTable::AliasTable(const std::vector<float>& weights) {
   const size_t n = weights.size();
   if (n == 0) return;

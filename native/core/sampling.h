@@ -72,6 +72,25 @@ inline float spherical_triangle_area(const vec3& a, const vec3& b, const vec3& c
 bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, float area, vec2 u, vec3* w,
                                bool near_plane = true);
 
+// A rectangle seen from a point, for directions uniform in the solid angle
+// it subtends (Urena, Fajardo and King 2013, "An area-preserving
+// parametrization for spherical rectangles"; Cycles samples rectangular area
+// lights this way). The rectangle is corner + [0,1] ex + [0,1] ey, ex and
+// ey orthogonal.
+struct SphericalRectangle {
+  // Sets it up from o; false when o lies in the rectangle's plane (or the
+  // rectangle is degenerate), where there is no solid angle to sample.
+  bool init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey);
+  float solid_angle() const { return S; }
+  // The point of the rectangle in the direction given by u (density 1 / S
+  // in solid angle from o).
+  vec3 sample(vec2 u) const;
+
+  vec3 o, x, y, z;         // local frame: x, y along the edges, z towards the rectangle's plane
+  float z0, x0, x1, y0, y1; // the rectangle in that frame (z0 <= 0)
+  float b0, b1, k, S;
+};
+
 inline float power_heuristic(float f_pdf, float g_pdf) {
   float f = f_pdf * f_pdf, g = g_pdf * g_pdf;
   if (std::isinf(f)) return 1.0f;
