@@ -79,12 +79,18 @@ def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
     path = os.path.join(tempfile.mkdtemp(prefix="tessera_test_"), f"{engine.lower()}.exr")
     r.filepath = path
     bpy.ops.render.render(write_still=True)
+    px = load_image(path)
+    os.remove(path)
+    return px
+
+
+def load_image(path):
+    """An image file's pixels as float32 (H, W, 4), rows top to bottom."""
     img = bpy.data.images.load(path)
     w, h = img.size
     px = np.empty(w * h * 4, dtype=np.float32)
     img.pixels.foreach_get(px)
     bpy.data.images.remove(img)
-    os.remove(path)
     return px.reshape(h, w, 4)[::-1]
 
 

@@ -10,7 +10,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from helpers import configure_engine
+from helpers import configure_engine, load_image
 from scenes import add_camera, add_plane, empty_scene, principled, set_world
 
 
@@ -18,15 +18,6 @@ def emitter(name, color):
     # Black and without specular: it only emits (nothing of the other emitter is reflected).
     return principled(name, color=(0.0, 0.0, 0.0), Specular=0.0, Emission=(*color, 1.0),
                       **{"Emission Strength": 1.0})
-
-
-def load(path):
-    img = bpy.data.images.load(path)
-    w, h = img.size
-    px = np.empty(w * h * 4, dtype=np.float32)
-    img.pixels.foreach_get(px)
-    bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)[::-1]
 
 
 def exr_output(scene, directory, name):
@@ -57,7 +48,7 @@ def test_objects_move_between_the_frames_of_an_animation():
     assert [os.path.basename(f) for f in files] == ["frame_0001.exr", "frame_0002.exr", "frame_0003.exr"]
     centres = []
     for f in files:
-        lum = load(f)[..., :3].mean(axis=-1)
+        lum = load_image(f)[..., :3].mean(axis=-1)
         ys, xs = np.nonzero(lum > 0.5)
         assert len(xs) > 0, f"{f}: the square is not in the image"
         centres.append(xs.mean())
@@ -69,7 +60,7 @@ def test_objects_move_between_the_frames_of_an_animation():
     scene.frame_set(2)
     exr_output(scene, out, "still_2.exr")
     bpy.ops.render.render(write_still=True)
-    assert np.array_equal(load(os.path.join(out, "still_2.exr")), load(files[1]))
+    assert np.array_equal(load_image(os.path.join(out, "still_2.exr")), load_image(files[1]))
 
 
 def test_camera_override_of_a_sequencer_scene_strip():
@@ -86,7 +77,7 @@ def test_camera_override_of_a_sequencer_scene_strip():
     out = tempfile.mkdtemp(prefix="tessera_override_")
     exr_output(scene, out, "scene.exr")
     bpy.ops.render.render(write_still=True)
-    direct = load(os.path.join(out, "scene.exr"))[..., :3].mean(axis=(0, 1))
+    direct = load_image(os.path.join(out, "scene.exr"))[..., :3].mean(axis=(0, 1))
     assert direct[0] > 0.9 and direct[2] < 0.01, f"scene camera: mean RGB {direct}"
 
     edit = bpy.data.scenes.new("Edit")
@@ -103,5 +94,5 @@ def test_camera_override_of_a_sequencer_scene_strip():
     edit.render.use_sequencer = True
     exr_output(edit, out, "edit.exr")
     bpy.ops.render.render(write_still=True, scene=edit.name)
-    through_b = load(os.path.join(out, "edit.exr"))[..., :3].mean(axis=(0, 1))
+    through_b = load_image(os.path.join(out, "edit.exr"))[..., :3].mean(axis=(0, 1))
     assert through_b[2] > 0.9 and through_b[0] < 0.01, f"strip camera override: mean RGB {through_b}"

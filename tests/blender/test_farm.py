@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 import pytest
 
-from helpers import SCENES, blender_render_frame
+from helpers import SCENES, blender_render_frame, load_image
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 ADDON = os.path.join(ROOT, "addon")
@@ -35,14 +35,6 @@ def python():
     return "/usr/bin/python3" if os.path.exists("/usr/bin/python3") else shutil.which("python3")
 
 
-def load_exr(path):
-    img = bpy.data.images.load(path)
-    w, h = img.size
-    px = np.empty(w * h * 4, dtype=np.float32)
-    img.pixels.foreach_get(px)
-    bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)
-
 
 def region_render(tmp_path, name, *args):
     out = str(tmp_path / name)
@@ -60,7 +52,7 @@ def test_four_region_renders_stitch_to_the_full_render(tmp_path):
     tiled_proc, tiled = region_render(tmp_path, "tiled.exr", "--tiles", "2x2")
     assert tiled_proc.returncode == 0
     assert tiled_proc.stdout.count("done (") == 4
-    a, b = load_exr(full), load_exr(tiled)
+    a, b = load_image(full), load_image(tiled)
     assert a.shape == b.shape == (29, 37, 4)
     assert a[..., :3].mean() > 0.01, "the reference render is black"
     assert np.array_equal(a, b), f"stitched differs from the full render in {np.count_nonzero(a != b)} values"
@@ -71,7 +63,7 @@ def test_uncropped_region_renders_stitch_to_the_full_render(tmp_path):
     full_proc, full = region_render(tmp_path, "full.exr", "--tiles", "1x1")
     tiled_proc, tiled = region_render(tmp_path, "tiled.exr", "--tiles", "2x2", "--no-crop", "--jobs", "2")
     assert full_proc.returncode == 0 and tiled_proc.returncode == 0
-    assert np.array_equal(load_exr(full), load_exr(tiled))
+    assert np.array_equal(load_image(full), load_image(tiled))
 
 
 def test_failed_render_exits_non_zero(tmp_path):
