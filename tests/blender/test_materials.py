@@ -300,6 +300,38 @@ def _fresnel_default_ior():
         bpy.data.node_groups.remove(tree)
 
 
+def test_every_closure_follows_the_running_blenders_cycles():
+    """Each closure of a mix carries the shading model of the Blender that
+    exports it (a Principled BSDF in a Mix Shader was once left on Cycles
+    3.x's model on 4.x: 3.5% too bright in the alpha test), and the versions
+    map to the Cycles that changed the closures."""
+    from tessera.export import materials
+
+    def build(nodes, links):
+        t = _bsdf(nodes, 'ShaderNodeBsdfTransparent')
+        p = nodes.new('ShaderNodeBsdfPrincipled')
+        d = _bsdf(nodes, 'ShaderNodeBsdfDiffuse', Color=(0.8, 0.3, 0.2))
+        mix, mix2 = nodes.new('ShaderNodeMixShader'), nodes.new('ShaderNodeMixShader')
+        links.new(t.outputs[0], mix.inputs[1])
+        links.new(p.outputs[0], mix.inputs[2])
+        links.new(mix.outputs[0], mix2.inputs[1])
+        links.new(d.outputs[0], mix2.inputs[2])
+        return mix2.outputs[0]
+    empty_scene()
+
+    class Report:
+        def warn(self, key, message):
+            pass
+    params = materials.material_params(_shader_material("Mixed", build), Report())
+    kinds = [params["kind"]] + [c["kind"] for c in params["closures"]]
+    models = [params["model"]] + [c["model"] for c in params["closures"]]
+    assert sorted(kinds) == ["DIFFUSE", "PRINCIPLED", "TRANSPARENT"], kinds
+    expected = "CYCLES_3" if bpy.app.version < (4, 0, 0) else "CYCLES_4_3" if bpy.app.version >= (4, 3, 0) else "CYCLES_4"
+    assert models == [expected] * 3, models
+    assert [materials.shading_model(v) for v in ((3, 4, 1), (4, 2, 3), (4, 5, 0), (5, 0, 1))] == \
+        ["CYCLES_3", "CYCLES_4", "CYCLES_4_3", "CYCLES_4_3"]
+
+
 def test_image_texture_on_a_diffuse_bsdf_matches_cycles():
     """Per-texel textures reach the first textured closure of any kind (here a Diffuse BSDF in a mix)."""
     scene = empty_scene()

@@ -358,7 +358,7 @@ class _Flattener:
                                                and _linked_node(node.inputs['Normal']) is not None)
         tex = self.texture if claim else None
         params = self.params
-        c = dict(kind="PRINCIPLED", weight=weight)
+        c = dict(_CLOSURE_DEFAULTS, kind="PRINCIPLED", weight=weight)
         c["base_color"] = to_color(_textured(ev, node, 'Base Color', params, "base_color", tex))
         c["metallic"] = to_float(_textured(ev, node, 'Metallic', params, "metallic", tex))
         c["roughness"] = to_float(_textured(ev, node, 'Roughness', params, "roughness", tex))
