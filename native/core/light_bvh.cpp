@@ -23,16 +23,6 @@ vec3 rotate(const vec3& v, const vec3& k, float theta) {
   return v * c + glm::cross(k, v) * s + k * (glm::dot(k, v) * (1.0f - c));
 }
 
-// Cosine of the half-angle of the cone from p that holds the box (through its
-// bounding sphere); -1 when p is inside the sphere.
-float cos_bound_subtended(const AABB& b, const vec3& p) {
-  const vec3 c = b.center();
-  const float r2 = 0.25f * glm::dot(b.extent(), b.extent());
-  const float d2 = glm::dot(p - c, p - c);
-  if (d2 < r2) return -1.0f;
-  return safe_sqrt(1.0f - r2 / d2);
-}
-
 // Solid-angle measure of the directions a cone of normals (theta_o) with
 // emission spread theta_e can emit into (Conty Estevez and Kulla 2018, eq. 1).
 float m_omega(const LightBounds& lb) {
@@ -65,24 +55,35 @@ int bucket_index(float c, float lo, float ext, int buckets) {
 
 }  // namespace
 
-float LightBounds::importance(const vec3& p, const vec3& n) const {
+ImportanceBounds::ImportanceBounds(const LightBounds& lb)
+    : centre(lb.bounds.center()), phi(lb.phi), w(lb.w), cos_theta_o(lb.cos_theta_o),
+      sin_theta_o(safe_sqrt(1.0f - lb.cos_theta_o * lb.cos_theta_o)), cos_theta_e(lb.cos_theta_e),
+      radius2(0.25f * glm::dot(lb.bounds.extent(), lb.bounds.extent())),
+      min_dist2(0.5f * glm::length(lb.bounds.extent())), two_sided(lb.two_sided) {}
+
+float LightBounds::importance(const vec3& p, const vec3& n) const { return ImportanceBounds(*this).importance(p, n); }
+
+float ImportanceBounds::importance(const vec3& p, const vec3& n) const {
   if (phi <= 0.0f) return 0.0f;
-  const vec3 pc = bounds.center();
+  const vec3 to_p = p - centre;
+  const float dist2 = glm::dot(to_p, to_p);
   // Distance clamped to half the box diagonal: inside or close to the box the
   // 1/d^2 would blow up on a bound, not on a light.
-  const float d2 = std::max(glm::dot(p - pc, p - pc), 0.5f * glm::length(bounds.extent()));
-  const vec3 to_p = p - pc;
-  const float len = glm::length(to_p);
-  const vec3 wi = len > 0.0f ? to_p / len : vec3(0.0f, 0.0f, 1.0f);
+  const float d2 = std::max(dist2, min_dist2);
+  const float inv_len = dist2 > 0.0f ? 1.0f / std::sqrt(dist2) : 0.0f;
+  const vec3 wi = dist2 > 0.0f ? to_p * inv_len : vec3(0.0f, 0.0f, 1.0f);
   // Angle between the cone's axis and the direction to p, less the cone's
-  // spread theta_o and the box's own spread theta_b as seen from p.
+  // spread theta_o and the box's own spread theta_b as seen from p (the
+  // half-angle of the cone from p that holds the bounding sphere; all
+  // directions from inside it).
   float cos_w = glm::dot(w, wi);
   if (two_sided) cos_w = std::abs(cos_w);
   const float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
-  const float cos_b = cos_bound_subtended(bounds, p), sin_b = safe_sqrt(1.0f - cos_b * cos_b);
-  const float sin_o = safe_sqrt(1.0f - cos_theta_o * cos_theta_o);
-  const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_theta_o);
-  const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_theta_o);
+  const bool inside = dist2 < radius2;
+  const float sin2_b = inside ? 0.0f : radius2 * (inv_len * inv_len);
+  const float cos_b = inside ? -1.0f : safe_sqrt(1.0f - sin2_b), sin_b = std::sqrt(sin2_b);
+  const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_theta_o, cos_theta_o);
+  const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_theta_o, cos_theta_o);
   const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
   if (cos_p <= cos_theta_e) return 0.0f;
   float imp = phi * cos_p / d2;
@@ -133,15 +134,20 @@ void LightBVH::build(const std::vector<LightBounds>& lights) {
     if (lights[i].phi > 0.0f) ids.push_back(i);
   if (ids.empty()) return;
   nodes_.reserve(2 * ids.size());
-  build_node(ids, 0, ids.size(), lights, 0, 0);
+  std::vector<LightBounds> node_bounds;
+  node_bounds.reserve(2 * ids.size());
+  build_node(ids, 0, ids.size(), lights, 0, 0, node_bounds);
+  for (size_t i = 0; i < nodes_.size(); ++i) nodes_[i].ib = ImportanceBounds(node_bounds[i]);
 }
 
 uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t end,
-                              const std::vector<LightBounds>& lights, uint64_t trail, int depth) {
+                              const std::vector<LightBounds>& lights, uint64_t trail, int depth,
+                              std::vector<LightBounds>& node_bounds) {
   const uint32_t node = uint32_t(nodes_.size());
   nodes_.emplace_back();
+  node_bounds.emplace_back();
   if (end - begin == 1) {
-    nodes_[node].lb = lights[ids[begin]];
+    node_bounds[node] = lights[ids[begin]];
     nodes_[node].leaf = true;
     nodes_[node].index = ids[begin];
     trail_[ids[begin]] = trail;
@@ -195,10 +201,10 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
       return lights[a].bounds.center()[widest] < lights[b].bounds.center()[widest];
     });
   }
-  build_node(ids, begin, mid, lights, trail, depth + 1);
-  const uint32_t second = build_node(ids, mid, end, lights, trail | (uint64_t(1) << depth), depth + 1);
+  build_node(ids, begin, mid, lights, trail, depth + 1, node_bounds);
+  const uint32_t second = build_node(ids, mid, end, lights, trail | (uint64_t(1) << depth), depth + 1, node_bounds);
   nodes_[node].index = second;
-  nodes_[node].lb = union_bounds(nodes_[node + 1].lb, nodes_[second].lb);
+  node_bounds[node] = union_bounds(node_bounds[node + 1], node_bounds[second]);
   return node;
 }
 
@@ -209,10 +215,10 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
   // A lone light is picked only where it can contribute; below an interior
   // root the children's importances decide (pbrt-v4), so the root's own
   // importance is not evaluated.
-  if (nodes_[0].leaf && !(nodes_[0].lb.importance(p, n) > 0.0f)) return false;
+  if (nodes_[0].leaf && !(nodes_[0].ib.importance(p, n) > 0.0f)) return false;
   while (!nodes_[node].leaf) {
     const uint32_t c0 = node + 1, c1 = nodes_[node].index;
-    const float i0 = nodes_[c0].lb.importance(p, n), i1 = nodes_[c1].lb.importance(p, n);
+    const float i0 = nodes_[c0].ib.importance(p, n), i1 = nodes_[c1].ib.importance(p, n);
     if (!(i0 + i1 > 0.0f)) return false;
     const float p0 = i0 / (i0 + i1);
     // Reuse u for the next level, rescaled to [0,1) (pbrt-v4 SampleDiscrete).
@@ -230,13 +236,13 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
 
 float LightBVH::pmf(const vec3& p, const vec3& n, uint32_t light) const {
   if (light >= trail_.size() || trail_[light] == ~uint64_t(0)) return 0.0f;
-  if (nodes_[0].leaf && !(nodes_[0].lb.importance(p, n) > 0.0f)) return 0.0f;
+  if (nodes_[0].leaf && !(nodes_[0].ib.importance(p, n) > 0.0f)) return 0.0f;
   uint64_t trail = trail_[light];
   uint32_t node = 0;
   float prob = 1.0f;
   while (!nodes_[node].leaf) {
     const uint32_t c0 = node + 1, c1 = nodes_[node].index;
-    const float i0 = nodes_[c0].lb.importance(p, n), i1 = nodes_[c1].lb.importance(p, n);
+    const float i0 = nodes_[c0].ib.importance(p, n), i1 = nodes_[c1].ib.importance(p, n);
     if (!(i0 + i1 > 0.0f)) return 0.0f;
     if (trail & 1) {
       prob *= i1 / (i0 + i1), node = c1;

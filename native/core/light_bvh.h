@@ -31,6 +31,25 @@ struct LightBounds {
 
 LightBounds union_bounds(const LightBounds& a, const LightBounds& b);
 
+// What importance() needs of a LightBounds, precomputed once per node: the
+// box's centre and bounding sphere, the cone's sine. Light sampling
+// evaluates two of these per tree level, for every sample and for every MIS
+// density (pmf): in a scene of 10,000 emissive triangles they were a third of
+// the render's time.
+struct ImportanceBounds {
+  vec3 centre{0.0f};
+  float phi = 0.0f;
+  vec3 w{0.0f, 0.0f, 1.0f};
+  float cos_theta_o = 1.0f, sin_theta_o = 0.0f, cos_theta_e = 0.0f;
+  float radius2 = 0.0f;    // squared radius of the box's bounding sphere
+  float min_dist2 = 0.0f;  // the squared distance is clamped to this (pbrt-v4: half the box's diagonal)
+  bool two_sided = false;
+
+  ImportanceBounds() = default;
+  explicit ImportanceBounds(const LightBounds& lb);
+  float importance(const vec3& p, const vec3& n) const;
+};
+
 class LightBVH {
  public:
   // One bounds per light; ids are the lights' indices into `lights`. Lights
@@ -48,12 +67,12 @@ class LightBVH {
 
  private:
   struct Node {
-    LightBounds lb;
+    ImportanceBounds ib;
     uint32_t index = 0;  // leaf: light id; interior: second child (the first is this + 1)
     bool leaf = false;
   };
   uint32_t build_node(std::vector<uint32_t>& ids, size_t begin, size_t end, const std::vector<LightBounds>& lights,
-                      uint64_t trail, int depth);
+                      uint64_t trail, int depth, std::vector<LightBounds>& node_bounds);
   std::vector<Node> nodes_;
   // Per light: the path from the root, bit d set when the second child was
   // taken at depth d (pbrt-v4's bit trail); ~0 for lights not in the tree.
