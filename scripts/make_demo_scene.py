@@ -45,8 +45,10 @@ glass = material("Glass", (1.0, 1.0, 1.0), roughness=0.0, transmission=1.0)
 clay = material("Clay", (0.8, 0.45, 0.3), roughness=0.5)
 panel = material("Panel", (0.0, 0.0, 0.0), specular=0.0, emission=((1.0, 0.85, 0.6), 6.0))
 
-# Room: floor, back wall and two side walls.
-bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 0))
+# Room: floor, back wall and two side walls. The floor reaches past the
+# camera (y = -7.5), so the bottom of the frame sees floor, not the world.
+bpy.ops.mesh.primitive_plane_add(size=6, location=(0, -3, 0))
+bpy.context.object.scale.y = 2.0  # y from -9 to 3
 add(bpy.context.object, white)
 bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 3, 3), rotation=(math.pi / 2, 0, 0))
 add(bpy.context.object, white)
