@@ -42,12 +42,16 @@ def live_status(session, total):
     """Status text while rendering: samples, time, remaining, rays/s, error."""
     done = session.samples_done
     elapsed = session.elapsed_seconds
+    # Samples, rays and progress are as of the last pass: rate and remaining
+    # time are measured at that moment (update_seconds), counting down since.
+    updated = session.update_seconds
     progress = session.progress
     text = f"Tessera | Sample {done}/{total} | {format_seconds(elapsed)}"
-    if 0 < progress < 1:
-        text += f" | Remaining {format_seconds(elapsed * (1 - progress) / progress)}"
-    if elapsed > 0:
-        text += f" | {session.rays / elapsed / 1e6:.2f} Mrays/s"
+    remaining = session.remaining_seconds
+    if 0 < progress < 1 and remaining >= 0:
+        text += f" | Remaining {format_seconds(remaining)}"
+    if updated > 0:
+        text += f" | {session.rays / updated / 1e6:.2f} Mrays/s"
     if session.estimated_error > 0:
         text += f" | Error {100 * session.estimated_error:.2f}%"
     return text, progress

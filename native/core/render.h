@@ -46,6 +46,14 @@ class RenderSession {
   int samples_total() const { return options_.samples; }
   // Live figures while rendering (as of the last finished pass).
   double elapsed_seconds() const;
+  // The elapsed time when the live figures below were last updated (the
+  // last pass boundary): rates and the remaining time are taken at it, not
+  // at now, or they would sag between updates.
+  double update_seconds() const { return update_seconds_.load(); }
+  // Estimated seconds left: the whole render's time extrapolated from the
+  // progress (samples, error target) at the last update, capped by the time
+  // limit, less the time elapsed.
+  double remaining_seconds() const;
   double estimated_error() const { return estimated_error_.load(); }
   uint64_t pixel_samples() const { return pixel_samples_.load(); }
   uint64_t rays() const { return rays_.load(); }
@@ -83,6 +91,7 @@ class RenderSession {
   std::atomic<bool> cancel_{false};
   std::atomic<int> samples_done_{0};
   std::atomic<double> estimated_error_{0.0};
+  std::atomic<double> update_seconds_{0.0};
   std::atomic<uint64_t> pixel_samples_{0};
   std::atomic<uint64_t> rays_{0};
   std::atomic<bool> started_{false};

@@ -465,6 +465,8 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("samples_done", [](PySession& p) { return p.session().samples_done(); })
       .def_property_readonly("samples_total", [](PySession& p) { return p.session().samples_total(); })
       .def_property_readonly("elapsed_seconds", [](PySession& p) { return p.session().elapsed_seconds(); })
+      .def_property_readonly("update_seconds", [](PySession& p) { return p.session().update_seconds(); })
+      .def_property_readonly("remaining_seconds", [](PySession& p) { return p.session().remaining_seconds(); })
       .def_property_readonly("progress", [](PySession& p) { return p.session().progress(); })
       .def_property_readonly("estimated_error", [](PySession& p) { return p.session().estimated_error(); })
       .def_property_readonly("pixel_samples", [](PySession& p) { return p.session().pixel_samples(); })

@@ -120,3 +120,25 @@ def test_cancel_returns_promptly():
     assert session.wait(5.0)
     assert time.perf_counter() - t0 < 1.0
     assert session.stats()["cancelled"]
+
+
+def test_live_figures_are_taken_at_the_last_update():
+    """While rendering, rays and samples change only at pass boundaries;
+    update_seconds is when they did, so rays / update_seconds is the rate and
+    remaining_seconds counts down from the progress then (the status line's
+    rate sagged between updates when divided by the live elapsed time)."""
+    import time
+    scene = lit_scene()
+    opt = core.RenderOptions()
+    opt.samples = 1 << 14
+    opt.time_limit = 1.0
+    session = core.Session(scene, opt)
+    session.start()
+    seen = []
+    while not session.wait(0.02):
+        seen.append((session.elapsed_seconds, session.update_seconds, session.remaining_seconds))
+    assert all(u <= e + 1e-9 for e, u, _ in seen)
+    assert any(u > 0 for _, u, _ in seen)
+    # Under a 1 s time limit the remaining time never exceeds what is left of it.
+    assert all(r <= 1.0 - e + 0.05 for e, _, r in seen if r >= 0)
+    assert session.update_seconds > 0 and session.remaining_seconds == 0.0
