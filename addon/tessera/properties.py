@@ -61,7 +61,7 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         default=0.0, min=0.0, max=1.0, precision=4, step=0.1)
     estimate_error: BoolProperty(
         name="Estimate Error", description="Estimate the image's error for the status line and the render log: a "
-        "sparse grid of pixels (1/16 of a small image, 1/256 of a 1080p frame) also renders an independent "
+        "sparse grid of at least 256 pixels (1/16 of a 120-pixel image, 1/256 of a 1080p frame) also renders an independent "
         "replicate of its samples. Always on with an Error Target",
         default=True)
     max_bounces: IntProperty(

@@ -38,7 +38,7 @@ namespace tessera {
 // apart from the image.
 class Film {
  public:
-  static constexpr int kMinReplicatePixels = 512;
+  static constexpr int kMinReplicatePixels = 256;
   static constexpr int kMaxReplicateStride = 16;
 
   // n = width * height pixels; replicates only with estimate_error.

@@ -191,7 +191,7 @@ TEST(Controls, ErrorEstimateIsHonest) {
 TEST(Controls, ErrorEstimateReplicatesFollowTheImageSizeAndCanBeSwitchedOff) {
   // The replicate grid: every pixel of a small image, sparser on larger ones,
   // never fewer than Film::kMinReplicatePixels pixels.
-  for (auto [w, h, stride] : {std::tuple{24, 24, 1}, {64, 64, 2}, {120, 120, 4}, {512, 512, 16}, {1920, 1080, 16}}) {
+  for (auto [w, h, stride] : {std::tuple{24, 24, 1}, {64, 64, 4}, {120, 120, 4}, {120, 68, 4}, {512, 512, 16}, {1920, 1080, 16}}) {
     Film film;
     film.resize(w, h, true);
     EXPECT_EQ(stride, film.replicate_stride()) << w << "x" << h;
