@@ -1,6 +1,7 @@
 #include "ggx_energy.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <array>
 #include <vector>
@@ -14,6 +15,17 @@ float F0_from_ior(float ior) { return sqr((ior - 1.0f) / (ior + 1.0f)); }
 float ior_from_F0(float f0) {
   const float s = std::sqrt(std::clamp(f0, 0.0f, 0.99f));
   return (1.0f + s) / (1.0f - s);
+}
+
+// The tables are built inside function-local statics, typically from a
+// render task: the loop is isolated, so that while this thread waits for it
+// TBB does not hand it another render task, which could reach the same static
+// and wait for its own initialisation forever (it did: a render of a 4.x
+// Cornell box hung).
+std::vector<float> tabulate(int n, const std::function<float(int)>& entry) {
+  std::vector<float> data(size_t(std::max(n, 0)));
+  tbb::this_task_arena::isolate([&] { tbb::parallel_for(0, n, [&](int i) { data[i] = entry(i); }); });
+  return data;
 }
 
 namespace {
@@ -82,12 +94,10 @@ struct Table {
   std::vector<float> data;
 
   template <class F>
-  Table(int nx_, int ny_, int nz_, const F& entry) : nx(nx_), ny(ny_), nz(nz_), data(size_t(nx_) * ny_ * nz_) {
-    tbb::parallel_for(0, int(data.size()), [&](int i) {
-      const int x = i % nx, y = (i / nx) % ny, z = i / (nx * ny);
-      data[i] = std::clamp(entry(x, y, z), 0.0f, 1.0f);
-    });
-  }
+  Table(int nx_, int ny_, int nz_, const F& entry)
+      : nx(nx_), ny(ny_), nz(nz_), data(tabulate(nx_ * ny_ * nz_, [&](int i) {
+          return std::clamp(entry(i % nx_, (i / nx_) % ny_, i / (nx_ * ny_)), 0.0f, 1.0f);
+        })) {}
 
   // Cycles' lookup_table_read / _2D / _3D: linear interpolation between grid
   // points at saturate(t) * (n - 1) along each axis.

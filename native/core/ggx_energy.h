@@ -16,6 +16,8 @@
 // normals (Heitz 2018) with stratified samples instead of Cycles' Sobol
 // points: each entry is within ~1e-3 of Cycles' table.
 #pragma once
+#include <functional>
+#include <vector>
 
 namespace tessera::ggx_energy {
 
@@ -40,6 +42,10 @@ float gen_schlick_ior_s(float roughness, float mu, float eta);
 // ggx_gen_schlick_s table for the metallic F82-tint Fresnel (at z = 0.5,
 // halfway between its slices of exponents 40/7 and 35/8); 16 x 16.
 float schlick_s(float roughness, float mu);
+
+// entry(0) .. entry(n - 1), computed in parallel; safe inside the
+// initialiser of a function-local static reached from TBB tasks.
+std::vector<float> tabulate(int n, const std::function<float(int)>& entry);
 
 // Cycles' F0 <-> IOR conversions (bsdf_util.h).
 float F0_from_ior(float ior);
