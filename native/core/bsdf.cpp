@@ -499,7 +499,14 @@ void BSDF::add_closure_v4(const Closure& c, bool back_face) {
 }
 
 BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world)
-    : frame_(ensure_valid_reflection(ng, wo_world, ns)), ng_(ng), ns_(ns), wo_world_(wo_world) {
+    // Cycles 3.x bends the shading normal of every closure so that mirror
+    // reflections stay above the surface; Cycles 4.x only where a bump or
+    // normal map made the normal (maybe_ensure_valid_specular_reflection,
+    // SD_USE_BUMP_MAP_CORRECTION): interpolated normals are used as they are.
+    : frame_(m.model == ShadingModel::Cycles3 || m.normal_tex.valid() ? ensure_valid_reflection(ng, wo_world, ns) : ns),
+      ng_(ng),
+      ns_(ns),
+      wo_world_(wo_world) {
   wo_ = frame_.to_local(wo_world);
   Closure c0 = m.closure(0);
   // Principled Alpha (Cycles: mix of a white Transparent BSDF by 1 - alpha).
