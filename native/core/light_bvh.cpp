@@ -61,8 +61,6 @@ ImportanceBounds::ImportanceBounds(const LightBounds& lb)
       radius2(0.25f * glm::dot(lb.bounds.extent(), lb.bounds.extent())),
       min_dist2(0.5f * glm::length(lb.bounds.extent())), two_sided(lb.two_sided) {}
 
-float LightBounds::importance(const vec3& p, const vec3& n) const { return ImportanceBounds(*this).importance(p, n); }
-
 float ImportanceBounds::importance(const vec3& p, const vec3& n) const {
   if (phi <= 0.0f) return 0.0f;
   const vec3 to_p = p - centre;

@@ -21,12 +21,6 @@ struct LightBounds {
   float cos_theta_o = 1.0f;  // the normals lie within theta_o of w
   float cos_theta_e = 0.0f;  // each point emits up to theta_e off its normal
   bool two_sided = false;    // emits on both sides of its normals
-
-  // Conservative estimate of the light's contribution at p, for a receiver
-  // with normal n (0: any direction): power times the largest cosines the
-  // bounds allow at the emitter and the receiver, over the squared distance
-  // (pbrt-v4 LightBounds::Importance). 0 only where it cannot contribute.
-  float importance(const vec3& p, const vec3& n) const;
 };
 
 LightBounds union_bounds(const LightBounds& a, const LightBounds& b);
@@ -47,6 +41,10 @@ struct ImportanceBounds {
 
   ImportanceBounds() = default;
   explicit ImportanceBounds(const LightBounds& lb);
+  // Conservative estimate of the lights' contribution at p, for a receiver
+  // with normal n (0: any direction): power times the largest cosines the
+  // bounds allow at the emitter and the receiver, over the squared distance
+  // (pbrt-v4 LightBounds::Importance). 0 only where they cannot contribute.
   float importance(const vec3& p, const vec3& n) const;
 };
 

@@ -84,21 +84,24 @@ bool RenderSession::out_of_time() const {
   return options_.time_limit > 0.0 && elapsed_seconds() >= options_.time_limit;
 }
 
-double RenderSession::remaining_seconds() const {
-  const double updated = update_seconds_.load();
+double RenderSession::sample_progress() const {
   double p = double(samples_done_.load()) / std::max(1, options_.samples);
   const double err = estimated_error_.load();
   if (options_.error_target > 0.0f && err > 0.0) p = std::max(p, std::pow(options_.error_target / err, 2.0));
+  return p;
+}
+
+double RenderSession::remaining_seconds() const {
+  const double updated = update_seconds_.load();
+  const double p = sample_progress();
   double total = p > 0.0 && updated > 0.0 ? updated / std::min(p, 1.0) : kInf;
   if (options_.time_limit > 0.0) total = std::min(total, options_.time_limit);
   return std::isfinite(total) ? std::max(0.0, total - elapsed_seconds()) : -1.0;
 }
 
 double RenderSession::progress() const {
-  double p = double(samples_done_.load()) / std::max(1, options_.samples);
+  double p = sample_progress();
   if (options_.time_limit > 0.0) p = std::max(p, elapsed_seconds() / options_.time_limit);
-  const double err = estimated_error_.load();
-  if (options_.error_target > 0.0f && err > 0.0) p = std::max(p, std::pow(options_.error_target / err, 2.0));
   return std::clamp(p, 0.0, 1.0);
 }
 

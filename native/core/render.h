@@ -75,6 +75,9 @@ class RenderSession {
   // Scrambling seed offset of the error estimate's replicates (film.h).
   static constexpr uint32_t kReplicateSeed = 0x9e3779b9U;
   bool out_of_time() const;
+  // Progress as of the last update from samples and the error target
+  // (which falls as 1/sqrt(samples)); progress() adds the time limit.
+  double sample_progress() const;
 
   const Scene& scene_;
   RenderOptions options_;
