@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <numeric>
 
+#include <emmintrin.h>
+
 namespace tessera {
 
 namespace {
@@ -43,7 +45,8 @@ float saoh_cost(const LightBounds& lb, const AABB& parent, int axis) {
   return lb.phi * m_omega(lb) * kr * area;
 }
 
-constexpr int kMaxDepth = 60;  // the bit trail has 64 bits
+// Below this depth the SAOH gives way to splits by count (log2 of the rest).
+constexpr int kMaxDepth = 40;
 
 // Bucket of a centroid coordinate c in [lo, lo + ext), clamped in float before
 // the conversion: with extents near the float range (or NaN from inf - inf)
@@ -124,31 +127,93 @@ LightBounds union_bounds(const LightBounds& a, const LightBounds& b) {
   return u;
 }
 
+void ImportanceBounds4::set(int k, const ImportanceBounds& b) {
+  cx[k] = b.centre.x, cy[k] = b.centre.y, cz[k] = b.centre.z;
+  wx[k] = b.w.x, wy[k] = b.w.y, wz[k] = b.w.z;
+  phi[k] = b.phi, cos_o[k] = b.cos_theta_o, sin_o[k] = b.sin_theta_o, cos_e[k] = b.cos_theta_e;
+  radius2[k] = b.radius2, min_dist2[k] = b.min_dist2;
+  two_sided[k] = b.two_sided ? ~0u : 0u;
+}
+
+namespace {
+
+// SSE2 (every x86-64 CPU) helpers for ImportanceBounds4::importance.
+inline __m128 blend(__m128 mask, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
+inline __m128 sqrt0(__m128 x) { return _mm_sqrt_ps(_mm_max_ps(x, _mm_setzero_ps())); }  // safe_sqrt
+// cos(max(0, a - b)) and sin(max(0, a - b)), as cos_sub_clamped / sin_sub_clamped.
+inline __m128 cos_sub(__m128 sin_a, __m128 cos_a, __m128 sin_b, __m128 cos_b) {
+  return blend(_mm_cmpgt_ps(cos_a, cos_b), _mm_set1_ps(1.0f),
+                _mm_add_ps(_mm_mul_ps(cos_a, cos_b), _mm_mul_ps(sin_a, sin_b)));
+}
+inline __m128 sin_sub(__m128 sin_a, __m128 cos_a, __m128 sin_b, __m128 cos_b) {
+  return _mm_andnot_ps(_mm_cmpgt_ps(cos_a, cos_b), _mm_sub_ps(_mm_mul_ps(sin_a, cos_b), _mm_mul_ps(cos_a, sin_b)));
+}
+
+}  // namespace
+
+// The same operations as ImportanceBounds::importance, in the same order,
+// one lane per child.
+void ImportanceBounds4::importance(const vec3& p, const vec3& n, float out[4]) const {
+  const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+  const __m128 tx = _mm_sub_ps(_mm_set1_ps(p.x), _mm_load_ps(cx));
+  const __m128 ty = _mm_sub_ps(_mm_set1_ps(p.y), _mm_load_ps(cy));
+  const __m128 tz = _mm_sub_ps(_mm_set1_ps(p.z), _mm_load_ps(cz));
+  const __m128 dist2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(tx, tx), _mm_mul_ps(ty, ty)), _mm_mul_ps(tz, tz));
+  const __m128 d2 = _mm_max_ps(dist2, _mm_load_ps(min_dist2));
+  const __m128 away = _mm_cmpgt_ps(dist2, zero);
+  const __m128 inv_len = _mm_and_ps(away, _mm_div_ps(one, _mm_sqrt_ps(dist2)));
+  const __m128 wi_x = _mm_mul_ps(tx, inv_len), wi_y = _mm_mul_ps(ty, inv_len);
+  const __m128 wi_z = blend(away, _mm_mul_ps(tz, inv_len), one);
+  __m128 cos_w = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_load_ps(wx), wi_x), _mm_mul_ps(_mm_load_ps(wy), wi_y)),
+                            _mm_mul_ps(_mm_load_ps(wz), wi_z));
+  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  const __m128 two = _mm_castsi128_ps(_mm_load_si128(reinterpret_cast<const __m128i*>(two_sided)));
+  cos_w = blend(two, _mm_and_ps(cos_w, abs_mask), cos_w);
+  const __m128 sin_w = sqrt0(_mm_sub_ps(one, _mm_mul_ps(cos_w, cos_w)));
+  const __m128 r2 = _mm_load_ps(radius2);
+  const __m128 inside = _mm_cmplt_ps(dist2, r2);
+  const __m128 sin2_b = _mm_andnot_ps(inside, _mm_mul_ps(r2, _mm_mul_ps(inv_len, inv_len)));
+  const __m128 cos_b = blend(inside, _mm_set1_ps(-1.0f), sqrt0(_mm_sub_ps(one, sin2_b)));
+  const __m128 sin_b = _mm_sqrt_ps(sin2_b);
+  const __m128 co = _mm_load_ps(cos_o), so = _mm_load_ps(sin_o);
+  const __m128 cos_x = cos_sub(sin_w, cos_w, so, co), sin_x = sin_sub(sin_w, cos_w, so, co);
+  const __m128 cos_p = cos_sub(sin_x, cos_x, sin_b, cos_b);
+  const __m128 ph = _mm_load_ps(phi);
+  const __m128 lit = _mm_and_ps(_mm_cmpgt_ps(cos_p, _mm_load_ps(cos_e)), _mm_cmpgt_ps(ph, zero));
+  __m128 imp = _mm_div_ps(_mm_mul_ps(ph, cos_p), d2);
+  if (n != vec3(0.0f)) {
+    const __m128 dn = _mm_add_ps(_mm_add_ps(_mm_mul_ps(wi_x, _mm_set1_ps(n.x)), _mm_mul_ps(wi_y, _mm_set1_ps(n.y))),
+                                 _mm_mul_ps(wi_z, _mm_set1_ps(n.z)));
+    const __m128 cos_i = _mm_and_ps(dn, abs_mask);
+    const __m128 sin_i = sqrt0(_mm_sub_ps(one, _mm_mul_ps(cos_i, cos_i)));
+    imp = _mm_mul_ps(imp, cos_sub(sin_i, cos_i, sin_b, cos_b));
+  }
+  // max(imp, 0) also turns a NaN (a light of zero size exactly at p) into 0.
+  _mm_storeu_ps(out, _mm_and_ps(lit, _mm_max_ps(imp, zero)));
+}
+
 void LightBVH::build(const std::vector<LightBounds>& lights) {
   nodes_.clear();
-  trail_.assign(lights.size(), ~uint64_t(0));
+  place_.assign(lights.size(), ~0u);
   std::vector<uint32_t> ids;
   for (uint32_t i = 0; i < lights.size(); ++i)
     if (lights[i].phi > 0.0f) ids.push_back(i);
   if (ids.empty()) return;
-  nodes_.reserve(2 * ids.size());
-  std::vector<LightBounds> node_bounds;
-  node_bounds.reserve(2 * ids.size());
-  build_node(ids, 0, ids.size(), lights, 0, 0, node_bounds);
-  for (size_t i = 0; i < nodes_.size(); ++i) nodes_[i].ib = ImportanceBounds(node_bounds[i]);
+  std::vector<BinaryNode> binary;
+  binary.reserve(2 * ids.size());
+  build_binary(ids, 0, ids.size(), lights, 0, binary);
+  nodes_.reserve(ids.size() / 2 + 1);
+  collapse(binary, 0, ~0u, 0);
 }
 
-uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t end,
-                              const std::vector<LightBounds>& lights, uint64_t trail, int depth,
-                              std::vector<LightBounds>& node_bounds) {
-  const uint32_t node = uint32_t(nodes_.size());
-  nodes_.emplace_back();
-  node_bounds.emplace_back();
+uint32_t LightBVH::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end,
+                                const std::vector<LightBounds>& lights, int depth, std::vector<BinaryNode>& out) {
+  const uint32_t node = uint32_t(out.size());
+  out.emplace_back();
   if (end - begin == 1) {
-    node_bounds[node] = lights[ids[begin]];
-    nodes_[node].leaf = true;
-    nodes_[node].index = ids[begin];
-    trail_[ids[begin]] = trail;
+    out[node].bounds = lights[ids[begin]];
+    out[node].leaf = true;
+    out[node].left = ids[begin];
     return node;
   }
   AABB bounds, centroids;
@@ -162,7 +227,7 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
   size_t mid = begin + (end - begin) / 2;
   const int widest = max_dimension(centroids.extent());
   bool split = false;
-  if (depth < kMaxDepth - 20 && max_component(centroids.extent()) > 0.0f) {
+  if (depth < kMaxDepth && max_component(centroids.extent()) > 0.0f) {
     constexpr int kBuckets = 12;
     float best_cost = kInf;
     int best_axis = -1, best_bucket = -1;
@@ -170,17 +235,19 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
       const float lo = centroids.lo[axis], ext = centroids.hi[axis] - lo;
       if (!(ext > 0.0f)) continue;
       LightBounds bucket[kBuckets];
-      auto bucket_of = [&](uint32_t id) { return bucket_index(lights[id].bounds.center()[axis], lo, ext, kBuckets); };
       for (size_t i = begin; i < end; ++i) {
-        const int b = bucket_of(ids[i]);
+        const int b = bucket_index(lights[ids[i]].bounds.center()[axis], lo, ext, kBuckets);
         bucket[b] = union_bounds(bucket[b], lights[ids[i]]);
       }
+      // Bounds of the buckets above each split, then one sweep from below.
+      LightBounds above[kBuckets];
+      above[kBuckets - 1] = bucket[kBuckets - 1];
+      for (int b = kBuckets - 2; b > 0; --b) above[b] = union_bounds(bucket[b], above[b + 1]);
+      LightBounds below;
       for (int b = 0; b < kBuckets - 1; ++b) {
-        LightBounds below, above;
-        for (int k = 0; k <= b; ++k) below = union_bounds(below, bucket[k]);
-        for (int k = b + 1; k < kBuckets; ++k) above = union_bounds(above, bucket[k]);
-        if (below.phi <= 0.0f || above.phi <= 0.0f) continue;
-        const float cost = saoh_cost(below, bounds, axis) + saoh_cost(above, bounds, axis);
+        below = union_bounds(below, bucket[b]);
+        if (below.phi <= 0.0f || above[b + 1].phi <= 0.0f) continue;
+        const float cost = saoh_cost(below, bounds, axis) + saoh_cost(above[b + 1], bounds, axis);
         if (cost < best_cost) best_cost = cost, best_axis = axis, best_bucket = b;
       }
     }
@@ -199,10 +266,48 @@ uint32_t LightBVH::build_node(std::vector<uint32_t>& ids, size_t begin, size_t e
       return lights[a].bounds.center()[widest] < lights[b].bounds.center()[widest];
     });
   }
-  build_node(ids, begin, mid, lights, trail, depth + 1, node_bounds);
-  const uint32_t second = build_node(ids, mid, end, lights, trail | (uint64_t(1) << depth), depth + 1, node_bounds);
-  nodes_[node].index = second;
-  node_bounds[node] = union_bounds(node_bounds[node + 1], node_bounds[second]);
+  const uint32_t left = build_binary(ids, begin, mid, lights, depth + 1, out);
+  const uint32_t right = build_binary(ids, mid, end, lights, depth + 1, out);
+  out[node].left = left, out[node].right = right;
+  out[node].bounds = union_bounds(out[left].bounds, out[right].bounds);
+  return node;
+}
+
+// One 4-wide node from binary node b: its two children, then the interior
+// child with the largest box opened in its place while there is room
+// (the usual BVH2 -> BVH4 collapse). A lone light makes a root of one lane.
+uint32_t LightBVH::collapse(const std::vector<BinaryNode>& binary, uint32_t b, uint32_t parent, int parent_lane) {
+  const uint32_t node = uint32_t(nodes_.size());
+  nodes_.emplace_back();
+  nodes_[node].parent = parent;
+  nodes_[node].parent_lane = uint8_t(parent_lane);
+  uint32_t lanes[4] = {b};
+  int count = 1;
+  if (!binary[b].leaf) lanes[0] = binary[b].left, lanes[1] = binary[b].right, count = 2;
+  while (count < 4) {
+    int open = -1;
+    float best = -1.0f;
+    for (int k = 0; k < count; ++k) {
+      const BinaryNode& c = binary[lanes[k]];
+      if (!c.leaf && c.bounds.bounds.half_area() > best) best = c.bounds.bounds.half_area(), open = k;
+    }
+    if (open < 0) break;
+    const BinaryNode& c = binary[lanes[open]];
+    lanes[open] = c.left;
+    lanes[count++] = c.right;
+  }
+  for (int k = 0; k < count; ++k) {
+    const BinaryNode& c = binary[lanes[k]];
+    nodes_[node].ib.set(k, ImportanceBounds(c.bounds));
+    if (c.leaf) {
+      nodes_[node].child[k] = c.left;
+      nodes_[node].leaf_mask |= uint8_t(1u << k);
+      place_[c.left] = node * 4 + uint32_t(k);
+    } else {
+      const uint32_t child = collapse(binary, lanes[k], node, k);
+      nodes_[node].child[k] = child;
+    }
+  }
   return node;
 }
 
@@ -210,46 +315,50 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
   if (nodes_.empty()) return false;
   uint32_t node = 0;
   float prob = 1.0f;
-  // A lone light is picked only where it can contribute; below an interior
-  // root the children's importances decide (pbrt-v4), so the root's own
-  // importance is not evaluated.
-  if (nodes_[0].leaf && !(nodes_[0].ib.importance(p, n) > 0.0f)) return false;
-  while (!nodes_[node].leaf) {
-    const uint32_t c0 = node + 1, c1 = nodes_[node].index;
-    const float i0 = nodes_[c0].ib.importance(p, n), i1 = nodes_[c1].ib.importance(p, n);
-    if (!(i0 + i1 > 0.0f)) return false;
-    const float p0 = i0 / (i0 + i1);
-    // Reuse u for the next level, rescaled to [0,1) (pbrt-v4 SampleDiscrete).
-    if (u < p0) {
-      node = c0, prob *= p0, u = std::min(u / p0, 0x1.fffffep-1f);
-    } else {
-      node = c1, prob *= 1.0f - p0, u = std::min((u - p0) / (1.0f - p0), 0x1.fffffep-1f);
+  for (;;) {
+    const Node& nd = nodes_[node];
+    alignas(16) float imp[4];
+    nd.ib.importance(p, n, imp);
+    const float sum = (imp[0] + imp[1]) + (imp[2] + imp[3]);
+    if (!(sum > 0.0f)) return false;
+    // The lane whose share of [0, sum) holds u * sum; u is rescaled to [0,1)
+    // within it for the next level (pbrt-v4 SampleDiscrete).
+    int last = 3;
+    while (imp[last] <= 0.0f) --last;
+    const float x = u * sum;
+    float below = 0.0f;
+    int k = 0;
+    for (;; ++k) {
+      if (imp[k] <= 0.0f) continue;
+      if (k == last || x < below + imp[k]) break;
+      below += imp[k];
     }
+    prob *= imp[k] / sum;
+    u = std::clamp((x - below) / imp[k], 0.0f, 0x1.fffffep-1f);
+    if (nd.leaf_mask & (1u << k)) {
+      *light = nd.child[k];
+      break;
+    }
+    node = nd.child[k];
   }
-  *light = nodes_[node].index;
   *pmf = prob;
   if (u_remapped) *u_remapped = u;
   return prob > 0.0f;
 }
 
 float LightBVH::pmf(const vec3& p, const vec3& n, uint32_t light) const {
-  if (light >= trail_.size() || trail_[light] == ~uint64_t(0)) return 0.0f;
-  if (nodes_[0].leaf && !(nodes_[0].ib.importance(p, n) > 0.0f)) return 0.0f;
-  uint64_t trail = trail_[light];
-  uint32_t node = 0;
+  if (light >= place_.size() || place_[light] == ~0u) return 0.0f;
+  uint32_t node = place_[light] / 4, lane = place_[light] % 4;
   float prob = 1.0f;
-  while (!nodes_[node].leaf) {
-    const uint32_t c0 = node + 1, c1 = nodes_[node].index;
-    const float i0 = nodes_[c0].ib.importance(p, n), i1 = nodes_[c1].ib.importance(p, n);
-    if (!(i0 + i1 > 0.0f)) return 0.0f;
-    if (trail & 1) {
-      prob *= i1 / (i0 + i1), node = c1;
-    } else {
-      prob *= i0 / (i0 + i1), node = c0;
-    }
-    trail >>= 1;
+  for (;;) {
+    alignas(16) float imp[4];
+    nodes_[node].ib.importance(p, n, imp);
+    if (!(imp[lane] > 0.0f)) return 0.0f;
+    prob *= imp[lane] / ((imp[0] + imp[1]) + (imp[2] + imp[3]));
+    if (node == 0) return prob;
+    lane = nodes_[node].parent_lane;
+    node = nodes_[node].parent;
   }
-  return prob;
 }
 
 }  // namespace tessera

@@ -6,8 +6,10 @@
 // by the emission spread theta_e) and total power; a traversal from the root
 // chooses a child by the importance of its bounds at the point, so lights
 // that are far, behind the point or facing away from it are rarely or never
-// picked. pmf() retraces the same choices for MIS.
+// picked. pmf() multiplies the same choices' probabilities from the light up
+// to the root, for MIS.
 #pragma once
+#include <cstdint>
 #include <vector>
 #include "aabb.h"
 
@@ -48,6 +50,21 @@ struct ImportanceBounds {
   float importance(const vec3& p, const vec3& n) const;
 };
 
+// Four ImportanceBounds side by side, one SSE lane each (structure of
+// arrays), so that a node's children are weighed in one pass. Lanes without
+// a child have phi 0 and importance 0.
+struct alignas(16) ImportanceBounds4 {
+  float cx[4] = {}, cy[4] = {}, cz[4] = {}, wx[4] = {}, wy[4] = {}, wz[4] = {};
+  float phi[4] = {}, cos_o[4] = {}, sin_o[4] = {}, cos_e[4] = {}, radius2[4] = {}, min_dist2[4] = {};
+  uint32_t two_sided[4] = {};  // ~0u in a two-sided lane
+
+  void set(int lane, const ImportanceBounds& b);
+  // ImportanceBounds::importance of the four lanes, evaluated together.
+  void importance(const vec3& p, const vec3& n, float out[4]) const;
+};
+
+// A 4-wide tree: a binary SAOH tree collapsed so that each node weighs up to
+// four children at once, halving the levels a sample walks.
 class LightBVH {
  public:
   // One bounds per light; ids are the lights' indices into `lights`. Lights
@@ -65,16 +82,24 @@ class LightBVH {
 
  private:
   struct Node {
-    ImportanceBounds ib;
-    uint32_t index = 0;  // leaf: light id; interior: second child (the first is this + 1)
+    ImportanceBounds4 ib;
+    uint32_t child[4] = {};    // a light id in leaf lanes, else a node index
+    uint32_t parent = ~0u;     // the root has none
+    uint8_t parent_lane = 0;   // this node's lane in its parent
+    uint8_t leaf_mask = 0;     // bit k: lane k is a light
+  };
+  // The binary tree the SAOH builds, before collapsing.
+  struct BinaryNode {
+    LightBounds bounds;
+    uint32_t left = 0, right = 0;  // children; a leaf's light id in `left`
     bool leaf = false;
   };
-  uint32_t build_node(std::vector<uint32_t>& ids, size_t begin, size_t end, const std::vector<LightBounds>& lights,
-                      uint64_t trail, int depth, std::vector<LightBounds>& node_bounds);
+  static uint32_t build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end,
+                               const std::vector<LightBounds>& lights, int depth, std::vector<BinaryNode>& out);
+  uint32_t collapse(const std::vector<BinaryNode>& binary, uint32_t b, uint32_t parent, int parent_lane);
   std::vector<Node> nodes_;
-  // Per light: the path from the root, bit d set when the second child was
-  // taken at depth d (pbrt-v4's bit trail); ~0 for lights not in the tree.
-  std::vector<uint64_t> trail_;
+  // Per light: node * 4 + lane where it sits; ~0 for lights not in the tree.
+  std::vector<uint32_t> place_;
 };
 
 }  // namespace tessera

@@ -308,6 +308,46 @@ TEST(LightBVH, PmfSumsToOneAndMatchesWhatSamplePicks) {
   }
 }
 
+// A node weighs its four children in SIMD lanes: the same operations as the
+// scalar ImportanceBounds::importance, so the same values, on bounds of every
+// kind (points, boxes, cones, two-sided, dark) seen from inside, outside and
+// their centre, with and without a receiver normal.
+TEST(LightBVH, FourLaneImportanceEqualsTheScalarOne) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  int nonzero = 0;
+  for (int trial = 0; trial < 5000; ++trial) {
+    ImportanceBounds lanes[4];
+    ImportanceBounds4 four;
+    for (int k = 0; k < 4; ++k) {
+      LightBounds b;
+      const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
+      const float r = trial % 5 == 0 ? 0.0f : U(rng);
+      b.bounds.grow(c - r * vec3(U(rng), U(rng), U(rng)));
+      b.bounds.grow(c + r * vec3(U(rng), U(rng), U(rng)));
+      b.w = unit();
+      b.phi = k == 3 && trial % 2 ? 0.0f : 0.1f + 10.0f * U(rng);
+      b.cos_theta_o = trial % 3 == 0 ? -1.0f : 2.0f * U(rng) - 1.0f;
+      b.cos_theta_e = trial % 4 == 0 ? 0.0f : std::cos(1e-3f);
+      b.two_sided = (trial + k) % 2 == 0;
+      lanes[k] = ImportanceBounds(b);
+      four.set(k, lanes[k]);
+    }
+    const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
+    alignas(16) float out[4];
+    four.importance(p, n, out);
+    for (int k = 0; k < 4; ++k) {
+      const float ref = lanes[k].importance(p, n);
+      if (!std::isfinite(ref)) continue;  // a zero-size light exactly at p
+      ASSERT_NEAR(out[k], ref, 1e-6f * ref) << "trial " << trial << " lane " << k;
+      nonzero += ref > 0.0f;
+    }
+  }
+  EXPECT_GT(nonzero, 5000);
+}
+
 // Many lights: the BVH picks the ones that matter at the point, so the
 // estimate has far less spread than choosing by power alone, and stays exact.
 TEST(LightBVH, ManyLightsAreChosenByTheirContribution) {
