@@ -31,7 +31,7 @@ vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax,
     const SurfaceInteraction si = scene.interaction(r, hit);
     const Material& base = scene.materials[si.material];
     if (!base.may_be_transparent()) return vec3(0.0f);
-    std::optional<Material> textured;
+    MaterialScratch textured;
     tr *= scene.material_at(si, textured).transparency();
     if (!(max_component(tr) > 0.0f)) return vec3(0.0f);
     const vec3 next = offset_ray_origin(si.p, si.p_error, si.back_face ? -si.ng : si.ng, d);
@@ -128,7 +128,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
 
     const SurfaceInteraction si = scene.interaction(ray, hit);
-    std::optional<Material> textured;
+    MaterialScratch textured;
     const Material& material = scene.material_at(si, textured);
     const vec3 le = material.emission(si.back_face);
     if (first && !first->complete()) first->surface(ray, hit.t, si, material, le);
