@@ -8,11 +8,22 @@ namespace tessera {
 
 namespace {
 
+// Cosine of the angle between the direction w (unit, from the light) and the
+// spot's axis: in the light object's own space in Cycles 4.x (elliptical
+// cones under non-uniform scale), around `direction` otherwise.
+float spot_cos_to_axis(const Light& l, const vec3& w) {
+  if (!l.spot_scaled) return glm::dot(w, l.direction);
+  const vec3 local = l.spot_to_local * w;
+  const float len = glm::length(local);
+  return len > 0.0f ? -local.z / len : 0.0f;
+}
+
 // Smooth edge of a spot light, as Cycles' spot_light_attenuation: cut at
 // the cone and smoothstepped over the blend, times the cosine to the axis
-// in Cycles 3.x (spot_cosine), without it in 4.0+.
+// in Cycles 3.x (spot_cosine), without it in 4.0+. dir_from_light: from the
+// point on the light towards the shading point (Cycles' -ls->D).
 float spot_attenuation(const Light& l, const vec3& dir_from_light) {
-  const float c = glm::dot(dir_from_light, l.direction);
+  const float c = spot_cos_to_axis(l, dir_from_light);
   if (c <= l.spot_cos) return 0.0f;
   float a = l.spot_cosine ? c : 1.0f;
   const float t = c - l.spot_cos;
@@ -21,6 +32,80 @@ float spot_attenuation(const Light& l, const vec3& dir_from_light) {
     a *= x * x * (3.0f - 2.0f * x);
   }
   return a;
+}
+
+// Cosine of the widest half angle of a spot's cone about `direction`: its
+// own under no or uniform scale, else that of the longer of the scaled x and
+// y axes (Cycles' cos_half_larger_spread), for the light BVH's bounds.
+float spot_bounding_cos(const Light& l) {
+  if (!l.spot_scaled || l.spot_cos <= 0.0f) return l.spot_cos;
+  const glm::mat3 m = glm::inverse(l.spot_to_local);  // columns: the object's scaled axes
+  const float lx2 = glm::dot(m[0], m[0]), ly2 = glm::dot(m[1], m[1]), lz2 = glm::dot(m[2], m[2]);
+  const float tan2 = (1.0f - l.spot_cos * l.spot_cos) / (l.spot_cos * l.spot_cos);
+  const float c = 1.0f / std::sqrt(1.0f + tan2 * std::max(lx2, ly2) / lz2);
+  return std::isfinite(c) ? std::min(c, l.spot_cos) : -1.0f;
+}
+
+// 1 - cos of the half angle whose sine squared is s2, without cancellation
+// for small angles (Cycles' sin_sqr_to_one_minus_cos).
+float sin2_to_one_minus_cos(float s2) { return s2 / (1.0f + safe_sqrt(1.0f - s2)); }
+
+// A sphere light of centre c and radius r seen from p: outside it, the cone
+// the sphere subtends; inside, every direction. Returns the solid-angle
+// density of sample_sphere_light's directions (1 / the cone's solid angle,
+// or uniform over the sphere of directions inside) and whether p is outside.
+float sphere_light_pdf(const vec3& c, float r, const vec3& p, bool* outside) {
+  const vec3 pc = c - p;
+  const float d2 = glm::dot(pc, pc), r2 = r * r;
+  *outside = d2 > r2;
+  if (!*outside) return kUniformSpherePdf;
+  return 1.0f / (2.0f * kPi * sin2_to_one_minus_cos(r2 / d2));
+}
+
+// A direction towards the sphere light (uniform in the cone it subtends, or
+// over all directions from inside it) and the distance to its surface along
+// it (law of cosines, as Cycles' point_light_sample).
+bool sample_sphere_light(const vec3& c, float r, const vec3& p, vec2 u, vec3* wi, float* t, float* pdf,
+                         bool* outside) {
+  const vec3 pc = c - p;
+  const float d2 = glm::dot(pc, pc), r2 = r * r;
+  const float d = std::sqrt(d2);
+  if (!(d > 0.0f)) return false;
+  const vec3 axis = pc / d;
+  *pdf = sphere_light_pdf(c, r, p, outside);
+  if (*outside) {
+    const float one_minus_cos_max = sin2_to_one_minus_cos(r2 / d2);
+    const float x = u.x * one_minus_cos_max;  // 1 - cos(theta)
+    const float cos_t = 1.0f - x, sin2_t = x * (2.0f - x);
+    const float sin_t = safe_sqrt(sin2_t), phi = 2.0f * kPi * u.y;
+    const Frame f(axis);
+    *wi = glm::normalize(f.to_world(vec3(sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t)));
+    *t = d * cos_t - safe_sqrt(r2 - d2 * sin2_t);  // nearer intersection
+  } else {
+    *wi = sample_uniform_sphere(u);
+    const float cos_t = glm::dot(*wi, axis);
+    *t = d * cos_t + safe_sqrt(r2 - d2 * (1.0f - cos_t * cos_t));  // the way out
+  }
+  return *t > 0.0f && std::isfinite(*t);
+}
+
+// Distance along the unit direction d from o to the sphere (c, r): the
+// nearer intersection ahead, the way out from inside; false if none before
+// tmax (Ray Tracing Gems, ch. 7: the discriminant from the closest approach).
+bool intersect_sphere(const vec3& o, const vec3& d, const vec3& c, float r, float tmax, float* t) {
+  const vec3 oc = o - c;
+  const float b = glm::dot(oc, d);
+  const vec3 closest = oc - b * d;
+  const float disc = r * r - glm::dot(closest, closest);
+  if (disc < 0.0f) return false;
+  const float q = -b - std::copysign(std::sqrt(disc), b);
+  const float cc = glm::dot(oc, oc) - r * r;
+  float t0 = q != 0.0f ? cc / q : 0.0f, t1 = q;
+  if (t0 > t1) std::swap(t0, t1);
+  const float th = t0 > 0.0f ? t0 : t1;
+  if (!(th > 0.0f && th < tmax)) return false;
+  *t = th;
+  return true;
 }
 
 // Bound on the rounding error, along the ray, of both ends of a shadow ray
@@ -140,7 +225,7 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
       if (l.type == LightType::Spot) {
         // Emits within the cone only.
         b.w = l.direction;
-        b.cos_theta_o = l.spot_cos;
+        b.cos_theta_o = spot_bounding_cos(l);
         b.cos_theta_e = std::cos(1e-3f);
       } else {
         b.cos_theta_o = -1.0f;  // every direction
@@ -262,14 +347,15 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   switch (l.type) {
     case LightType::Point:
     case LightType::Spot: {
+      const bool spot = l.type == LightType::Spot;
       vec3 to_center = l.position - p;
       float d2 = glm::dot(to_center, to_center);
       if (d2 <= 0.0f) return false;
       float d = std::sqrt(d2);
       vec3 dir = to_center / d;
-      float atten = l.type == LightType::Spot ? spot_attenuation(l, -dir) : 1.0f;
-      if (atten <= 0.0f) return false;
       if (l.radius <= 0.0f) {
+        const float atten = spot ? spot_attenuation(l, -dir) : 1.0f;
+        if (atten <= 0.0f) return false;
         ls.wi = dir;
         ls.dist = d;
         ls.li = l.radiance * atten / d2;
@@ -277,7 +363,19 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
         ls.is_delta = true;
         return true;
       }
-      // A sphere light seen from p is sampled as the disk facing p (Cycles 3.x).
+      if (l.sphere) {
+        // Cycles 4.x's sphere light; a spot's cone applies outside it only.
+        float t, pdf;
+        bool outside;
+        if (!sample_sphere_light(l.position, l.radius, p, u, &ls.wi, &t, &pdf, &outside)) return false;
+        const float atten = spot && outside ? spot_attenuation(l, -ls.wi) : 1.0f;
+        if (atten <= 0.0f) return false;
+        ls.dist = t;
+        ls.li = l.radiance * atten;
+        ls.pdf = pmf * pdf;
+        return true;
+      }
+      // The disk of the radius facing p (Cycles 3.x; 4.x with Soft Falloff).
       Frame f(-dir);
       vec2 disk = l.radius * sample_uniform_disk_concentric(u);
       vec3 q = l.position + f.t * disk.x + f.b * disk.y;
@@ -287,6 +385,9 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       ls.wi = w / ls.dist;
       float cos_l = std::abs(glm::dot(ls.wi, f.n));
       if (cos_l <= 0.0f) return false;
+      // The cone is measured from the sampled point, as Cycles does.
+      const float atten = spot ? spot_attenuation(l, -ls.wi) : 1.0f;
+      if (atten <= 0.0f) return false;
       ls.li = l.radiance * atten;
       ls.pdf = pmf * dist2 / (cos_l * kPi * l.radius * l.radius);
       return true;
@@ -368,7 +469,12 @@ float LightSampler::pdf_background(const vec3& wi) const {
 
 float LightSampler::pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
   const Light& l = lights_[light];
-  if (cos_l <= 0.0f || l.radius <= 0.0f) return 0.0f;
+  if (l.radius <= 0.0f) return 0.0f;
+  if (l.sphere) {
+    bool outside;
+    return selection_pmf(light, p, n) * sphere_light_pdf(l.position, l.radius, p, &outside);
+  }
+  if (cos_l <= 0.0f) return 0.0f;
   return selection_pmf(light, p, n) * dist * dist / (cos_l * kPi * l.radius * l.radius);
 }
 
@@ -392,24 +498,42 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
       *t_hit = t;
       *le = l.radiance;
       *pdf = pdf_area(i, p, n, t, -denom);
-    } else {
-      // The disk of the light's radius facing the ray origin.
-      const vec3 to_center = l.position - o;
-      const float dist_c = glm::length(to_center);
-      if (!(dist_c > l.radius)) continue;
-      const vec3 n = -to_center / dist_c;  // disk normal, towards the origin
-      const float denom = glm::dot(d, n);
-      if (denom >= 0.0f) continue;
-      const float t = glm::dot(l.position - o, n) / denom;
-      if (!(t > 0.0f && t < tmax)) continue;
-      const vec3 q = o + t * d - l.position;
-      if (glm::dot(q, q) > l.radius * l.radius) continue;
-      const float atten = l.type == LightType::Spot ? spot_attenuation(l, -to_center / dist_c) : 1.0f;
+    } else if (l.sphere) {
+      // Cycles 4.x's sphere light (point_light_intersect); a spot is only
+      // hit by rays heading towards its centre (spot_light_intersect).
+      const bool spot = l.type == LightType::Spot;
+      if (spot && glm::dot(d, o - l.position) >= 0.0f) continue;
+      float t;
+      if (!intersect_sphere(o, d, l.position, l.radius, tmax, &t)) continue;
+      const vec3 oc = o - l.position;
+      const bool outside = glm::dot(oc, oc) > l.radius * l.radius;
+      const float atten = spot && outside ? spot_attenuation(l, -d) : 1.0f;
       if (atten <= 0.0f) continue;
       tmax = t;
       best = int(i);
       *t_hit = t;
       *le = l.radiance * atten;
+      *pdf = pdf_sphere(i, p, n, t, 1.0f);
+    } else {
+      // The disk of the light's radius facing the ray origin.
+      const vec3 to_center = l.position - o;
+      const float dist_c = glm::length(to_center);
+      if (!(dist_c > l.radius)) continue;
+      const vec3 disk_n = -to_center / dist_c;  // towards the origin
+      const float denom = glm::dot(d, disk_n);
+      if (denom >= 0.0f) continue;
+      const float t = glm::dot(l.position - o, disk_n) / denom;
+      if (!(t > 0.0f && t < tmax)) continue;
+      const vec3 q = o + t * d - l.position;
+      if (glm::dot(q, q) > l.radius * l.radius) continue;
+      const float atten = l.type == LightType::Spot ? spot_attenuation(l, -d) : 1.0f;
+      if (atten <= 0.0f) continue;
+      tmax = t;
+      best = int(i);
+      *t_hit = t;
+      *le = l.radiance * atten;
+      // The MIS density as sample() from (p, n), the shading point's normal
+      // (not the disk's: it picks the light by it).
       *pdf = pdf_sphere(i, p, n, t, -denom);
     }
   }

@@ -21,11 +21,24 @@ struct Light {
   vec3 direction{0.0f, 0.0f, -1.0f};  // emission axis (spot, sun, area): the light's -Z
   vec3 axis_u{1, 0, 0}, axis_v{0, 1, 0};  // area: half-extent vectors
   float radius = 0.0f;      // point/spot: sphere radius; sun: tan(half angle)
+  // point/spot with a radius: Cycles 4.x's sphere light ("Soft Falloff" off):
+  // constant radiance from the sphere's surface, sampled in the cone the
+  // sphere subtends (kernel/light/point.h). Otherwise the disk of the radius
+  // facing the shading point (Cycles 3.x, and 4.x with Soft Falloff).
+  bool sphere = false;
   float spot_cos = -1.0f;   // spot: cos(half cone angle)
   float spot_smooth = 0.0f; // spot: width of the smooth edge in cosine
   // spot: Cycles 3.x multiplies the smooth edge by the cosine to the axis;
   // Cycles 4.0+ (kernel/light/spot.h) uses the smoothstep alone.
   bool spot_cosine = true;
+  // spot: Cycles 4.x measures the angle to the axis in the light object's own
+  // space (spot_light_to_local: the inverse of its transform), so that a
+  // non-uniform scale makes the cone elliptical. When spot_scaled, a
+  // direction w from the light is taken to spot_to_local * w (the inverse of
+  // the object's 3x3, emission along local -Z); otherwise the cone is round
+  // around `direction` (Cycles 3.x ignores the scale).
+  bool spot_scaled = false;
+  glm::mat3 spot_to_local{1.0f};
   bool ellipse = false;     // area: disk/ellipse instead of square/rectangle
   vec3 radiance{0.0f};      // emitted radiance (area, sphere, sun disk) or intensity (radius 0)
   float area = 0.0f;        // area lights: surface area
@@ -73,7 +86,8 @@ class LightSampler {
   // Densities with which sample() from (p, n) would have produced the
   // direction hitting: the emissive triangle (instance, prim) at distance
   // dist with cosine cos_l; area light `light`; point/spot light `light`
-  // with a radius, seen as the disk facing the ray origin (Cycles 3.x); the world.
+  // with a radius (a sphere light: by the cone it subtends from p; otherwise
+  // seen as the disk facing p, at dist with cosine cos_l); the world.
   float pdf_triangle(const vec3& p, const vec3& n, uint32_t instance, uint32_t prim, float dist, float cos_l) const;
   float pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
   float pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;

@@ -350,7 +350,8 @@ PYBIND11_MODULE(_core, m) {
           "add_light",
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
              std::vector<float> axis_u, std::vector<float> axis_v, float radius, float spot_cos, float spot_smooth,
-             bool ellipse, std::vector<float> radiance, bool spot_cosine) {
+             bool ellipse, std::vector<float> radiance, bool spot_cosine, bool sphere,
+             std::vector<float> spot_to_local) {
             Light l;
             if (type == "POINT") l.type = LightType::Point;
             else if (type == "SPOT") l.type = LightType::Spot;
@@ -365,6 +366,13 @@ PYBIND11_MODULE(_core, m) {
             l.spot_cos = spot_cos;
             l.spot_smooth = spot_smooth;
             l.spot_cosine = spot_cosine;
+            l.sphere = sphere;
+            if (!spot_to_local.empty()) {  // row-major 3x3
+              if (spot_to_local.size() != 9) throw std::invalid_argument("spot_to_local must be a 3x3 matrix");
+              for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c) l.spot_to_local[c][r] = spot_to_local[3 * r + c];
+              l.spot_scaled = true;
+            }
             l.ellipse = ellipse;
             l.radiance = to_vec3(radiance, "radiance");
             l.area = 4.0f * glm::length(l.axis_u) * glm::length(l.axis_v) * (ellipse ? kPi / 4.0f : 1.0f);
@@ -374,7 +382,7 @@ PYBIND11_MODULE(_core, m) {
           py::arg("axis_u") = std::vector<float>{1, 0, 0}, py::arg("axis_v") = std::vector<float>{0, 1, 0},
           py::arg("radius") = 0.0f, py::arg("spot_cos") = -1.0f, py::arg("spot_smooth") = 0.0f,
           py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1},
-          py::arg("spot_cosine") = true)
+          py::arg("spot_cosine") = true, py::arg("sphere") = false, py::arg("spot_to_local") = std::vector<float>{})
       .def("set_world_color", [](Scene& s, std::vector<float> c) { s.background.set_color(to_vec3(c, "color")); })
       .def(
           "set_world_image",

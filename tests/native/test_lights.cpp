@@ -1,9 +1,11 @@
 // Light units and shapes that the add-on's Cycles conversions rely on
 // (addon/tessera/export/lights.py): the sun disk carries its whole
-// irradiance, and the spot edge with and without Cycles 3.x's cosine.
+// irradiance, the spot edge with and without Cycles 3.x's cosine, Cycles
+// 4.x's sphere lights and elliptical spot cones.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "core/render.h"
 #include "scene_fixtures.h"
@@ -12,12 +14,17 @@ using namespace tessera;
 
 namespace {
 
-// A white diffuse floor at z = 0 seen from (0, 0, 2) looking down -z.
-void floor_scene(Scene& s, const Light& light) {
+// A white diffuse floor at z = 0 seen from (0, 0, 2) looking down -z
+// (Lambertian if told: then the image is the irradiance x 0.8 / pi).
+void floor_scene(Scene& s, const Light& light, bool lambert = false) {
   Material white;
   white.base_color = vec3(0.8f);
   white.roughness = 1.0f;
   white.specular = 0.0f;
+  if (lambert) {
+    white.kind = ClosureKind::Diffuse;
+    white.roughness = 0.0f;
+  }
   s.materials.push_back(white);
   fixtures::add_quad(s, {-20, -20, 0}, {20, -20, 0}, {20, 20, 0}, {-20, 20, 0}, 1);
   s.lights.push_back(light);
@@ -92,4 +99,156 @@ TEST(Lights, SpotCosineFactorIsOptional) {
       ASSERT_GT(without[i], 0.0f);
       EXPECT_NEAR(with[i] / without[i], -r.d.z, 1e-3) << x << "," << y;
     }
+}
+
+namespace {
+
+Light sphere_light(vec3 position, float radius, float radiance) {
+  Light l;
+  l.type = LightType::Point;
+  l.position = position;
+  l.radius = radius;
+  l.sphere = true;
+  l.radiance = vec3(radiance);
+  return l;
+}
+
+// Integral over all directions from p of the density intersect_lights gives
+// for light `which` (0 where the ray misses it): 1 for a density, on a
+// stratified grid uniform in (cos theta, phi).
+double pdf_integral(const LightSampler& lights, int which, const vec3& p, const vec3& n, int k = 1024) {
+  double sum = 0.0;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      const vec3 d = sample_uniform_sphere(vec2((i + 0.5f) / k, (j + 0.5f) / k));
+      float t, pdf;
+      vec3 le;
+      if (lights.intersect_lights(p, d, kInf, &t, &le, &pdf, p, n) == which) sum += pdf;
+    }
+  return sum * 4.0 * kPi / (double(k) * k);
+}
+
+}  // namespace
+
+// Cycles 4.x's sphere light (point/spot, Soft Falloff off) is sampled in the
+// cone it subtends from outside, over all directions from inside: the
+// density that scattered rays hitting it get for MIS integrates to 1 over
+// the directions that reach it, near and far, inside and out. The disk of
+// Cycles 3.x (and 4.x's Soft Falloff) likewise.
+TEST(Lights, SphereLightPdfIntegratesToOne) {
+  for (bool sphere : {true, false}) {
+    Light l = sphere_light(vec3(0.3f, -0.2f, 1.0f), 0.5f, 1.0f);
+    l.sphere = sphere;
+    LightSampler lights;
+    lights.build({l}, {}, nullptr, 10.0f);
+    const vec3 n(0.0f, 0.0f, 1.0f);
+    for (vec3 p : {vec3(0.0f), vec3(0.3f, 0.4f, 1.2f), vec3(2.0f, 1.0f, -3.0f), vec3(0.3f, -0.2f, 0.7f),
+                   vec3(0.35f, -0.2f, 1.1f)}) {
+      const bool inside = glm::length(p - l.position) < l.radius;
+      if (inside && !sphere) continue;  // no disk from inside
+      EXPECT_NEAR(pdf_integral(lights, 0, p, n), 1.0, 5e-3) << "sphere " << sphere << " p " << p.x << "," << p.y << "," << p.z;
+    }
+  }
+}
+
+// What sample() reports for a hittable point or spot light (direction,
+// distance, radiance, density) is what a scattered ray in that direction
+// finds through intersect_lights, so that light sampling and BSDF sampling
+// weigh the same light alike in MIS. Several lights, so that the density
+// includes the choice of light by the shading point and normal: the disk's
+// density was computed with the disk's normal in place of the shading
+// normal (a shadowed variable), which changes the choice's probability.
+TEST(Lights, PointAndSpotSampleAndHitAgree) {
+  Light sphere = sphere_light(vec3(0.0f, 0.0f, 1.0f), 0.4f, 2.0f);
+  Light disk = sphere_light(vec3(3.0f, 0.0f, 1.5f), 0.3f, 3.0f);
+  disk.sphere = false;
+  Light spot = sphere_light(vec3(-2.0f, 1.0f, 2.0f), 0.5f, 4.0f);
+  spot.type = LightType::Spot;
+  spot.direction = glm::normalize(vec3(0.2f, -0.1f, -1.0f));
+  spot.spot_cos = std::cos(0.8f);
+  spot.spot_smooth = 0.1f;
+  spot.spot_cosine = false;
+  spot.spot_scaled = true;  // scaled 1.5 x 1 x 1 about its own axes
+  const Frame f(-spot.direction);
+  const glm::mat3 to_world(1.5f * f.t, f.b, f.n);  // columns: the object's x, y, z (it emits along -z)
+  spot.spot_to_local = glm::inverse(to_world);
+  Light spot_disk = spot;
+  spot_disk.position = vec3(0.0f, -3.0f, 2.0f);
+  spot_disk.sphere = false;
+  LightSampler lights;
+  lights.build({sphere, disk, spot, spot_disk}, {}, nullptr, 10.0f);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  int checked[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 20000; ++i) {
+    const vec3 p(6.0f * U(rng) - 3.0f, 6.0f * U(rng) - 3.0f, 1.2f * U(rng));
+    const vec3 n = glm::normalize(sample_uniform_sphere(vec2(U(rng), U(rng))) + vec3(0.0f, 0.0f, 0.7f));
+    LightSample ls;
+    if (!lights.sample(p, n, vec2(U(rng), U(rng)), ls)) continue;
+    ASSERT_FALSE(ls.is_delta);
+    float t, pdf;
+    vec3 le;
+    const int hit = lights.intersect_lights(p, ls.wi, kInf, &t, &le, &pdf, p, n);
+    ASSERT_GE(hit, 0) << p.x << "," << p.y << "," << p.z;
+    if (t < 0.999f * ls.dist) continue;  // another light lies in front of the sampled one
+    ++checked[hit];
+    EXPECT_NEAR(t, ls.dist, 1e-4f * (1.0f + ls.dist)) << hit;
+    EXPECT_NEAR(le.x, ls.li.x, 1e-4f * ls.li.x) << hit;
+    EXPECT_NEAR(pdf, ls.pdf, 2e-3f * ls.pdf) << hit << " at " << p.x << "," << p.y << "," << p.z;
+  }
+  for (int k = 0; k < 4; ++k) EXPECT_GT(checked[k], 100) << k;
+}
+
+// A sphere light entirely above the floor gives every floor point exactly
+// the irradiance of a point light of the same power (Cycles 4.x's sphere,
+// unlike the disk facing the point, which gives d^2 / (d^2 + r^2) of it).
+// The floor is Lambertian, so the images agree pixel by pixel.
+TEST(Lights, SphereLightGivesAPointLightsIrradiance) {
+  const float r = 0.6f, L = 5.0f;
+  Light sphere = sphere_light(vec3(0.1f, 0.0f, 0.8f), r, L);
+  Light point = sphere;
+  point.radius = 0.0f;
+  point.radiance = vec3(L * kPi * r * r);  // intensity: power / (4 pi) with power 4 pi^2 r^2 L
+  Scene a, b;
+  floor_scene(a, sphere, true);
+  floor_scene(b, point, true);
+  const std::vector<float> ia = render(a, 256), ib = render(b, 4);
+  double worst = 0.0;
+  for (size_t i = 0; i < ia.size(); i += 4) worst = std::max(worst, std::abs(double(ia[i]) / ib[i] - 1.0));
+  EXPECT_LT(worst, 0.01);
+  EXPECT_NEAR(mean_rgb(ia) / mean_rgb(ib), 1.0, 2e-3);
+}
+
+// Cycles 4.x measures a spot's angle in the light's own space: scaled 1.8
+// times along its x axis, the cone reaches 1.8 times as far (in tangent)
+// along x as along y. The camera sits at the light, so each pixel sees the
+// floor point in the pixel's own direction from the light.
+TEST(Lights, ScaledSpotConeIsElliptical) {
+  Light spot;
+  spot.type = LightType::Spot;
+  spot.position = vec3(0, 0, 2);
+  spot.direction = vec3(0, 0, -1);
+  spot.spot_cos = std::cos(0.25f);
+  spot.spot_cosine = false;
+  spot.radiance = vec3(10.0f);
+  spot.spot_scaled = true;
+  spot.spot_to_local = glm::inverse(glm::mat3(vec3(1.8f, 0, 0), vec3(0, 1, 0), vec3(0, 0, 1)));
+  Scene s;
+  floor_scene(s, spot);
+  const std::vector<float> px = render(s, 1);
+  const Camera& c = s.camera;
+  const float tan_edge = std::tan(0.25f);
+  int lit_outside_round = 0;
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x) {
+      const Ray ray = c.generate_ray(vec2(x + 0.5f, y + 0.5f));
+      const float tx = ray.d.x / -ray.d.z / 1.8f, ty = ray.d.y / -ray.d.z;  // tangents in the light's space
+      const float e = std::sqrt(tx * tx + ty * ty) / tan_edge;              // 1 on the cone
+      const float v = px[4 * (size_t(y) * c.width + x)];
+      if (e < 0.97f) EXPECT_GT(v, 0.0f) << x << "," << y;
+      if (e > 1.03f) EXPECT_EQ(v, 0.0f) << x << "," << y;
+      const float t_round = std::hypot(ray.d.x, ray.d.y) / -ray.d.z / tan_edge;
+      if (e < 0.97f && t_round > 1.1f) ++lit_outside_round;
+    }
+  EXPECT_GT(lit_outside_round, 4);
 }

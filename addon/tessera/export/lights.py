@@ -2,11 +2,17 @@
 or intensity the core samples, exactly as the Cycles of the running Blender
 converts them (intern/cycles/scene/light.cpp and kernel/light/*.h):
 
-- point/spot, radius r > 0: radiance P / (4 pi * pi r^2), seen as the disk
-  facing the shading point (3.x; 4.x's default "soft falloff"); r = 0:
-  intensity P / (4 pi). Unnormalised (4.x): radiance P / pi.
+- point/spot, radius r > 0: radiance P / (4 pi * pi r^2) (Light::area is the
+  sphere's 4 pi r^2), seen as the disk facing the shading point (3.x; 4.x's
+  default "Soft Falloff"), or, in 4.x with Soft Falloff off, emitted from the
+  sphere's surface (kernel/light/point.h, is_sphere); r = 0: intensity
+  P / (4 pi). Unnormalised (4.x): radiance P / pi. The object's scale does
+  not change the radius.
 - spot edge: 3.x multiplies the smoothstep by the cosine to the axis; 4.0+
-  uses the smoothstep alone (kernel/light/spot.h).
+  uses the smoothstep alone (kernel/light/spot.h). 4.0+ measures the angle
+  in the light object's own space (spot_light_to_local, through the inverse
+  transform), so a non-uniform scale makes the cone elliptical; 3.x uses the
+  normalised -Z axis whatever the scale.
 - area: 3.x radiance P / (4 A); 4.0+ P / (pi A), the physical value, and
   files older than 4.0 are versioned with energy *= pi / 4 (versioning_400,
   "Fix area light scaling"); unnormalised (4.x): P / pi.
@@ -61,6 +67,18 @@ def sun_radiance(irradiance, half_angle, normalize=True, cycles4=CYCLES_4):
     return irradiance * 2.0 * c / ((1.0 + c) * math.pi * s2)
 
 
+def spot_to_local(m3):
+    """The inverse of a spot light's 3x3 transform, row-major (Cycles 4.x
+    measures the cone's angle in the light's own space), or None if it has
+    no finite inverse."""
+    m3 = np.asarray(m3, dtype=np.float64)
+    scale = max(float(np.abs(m3).max()), 1e-300)
+    if abs(np.linalg.det(m3 / scale)) < 1e-12:
+        return None
+    inv = np.linalg.inv(m3)
+    return inv.reshape(-1).tolist() if np.all(np.isfinite(inv)) else None
+
+
 def export_light(scene_core, obj, matrix_world, report):
     light = obj.data
     m = np.array(matrix_world, dtype=np.float64)
@@ -86,16 +104,22 @@ def export_light(scene_core, obj, matrix_world, report):
         radius = float(light.shadow_soft_size)
         if radius > 0.0:
             args["radius"] = radius
-            if not getattr(light, "use_soft_falloff", True):
-                report.warn(obj.name, f"Light '{obj.name}': Soft Falloff is off, so Cycles renders it as a "
-                                      f"sphere; Tessera renders it as with Soft Falloff on (a disk facing "
-                                      f"each shaded point), which differs close to the light.")
+            # Blender 4.x: Soft Falloff off makes it a sphere light (Cycles' is_sphere).
+            args["sphere"] = CYCLES_4 and not getattr(light, "use_soft_falloff", True)
         args["radiance"] = point_radiance(power, radius, normalize).tolist()
         if kind == 'SPOT':
             spot_cos = math.cos(0.5 * float(light.spot_size))
             args["spot_cos"] = spot_cos
             args["spot_smooth"] = (1.0 - spot_cos) * float(light.spot_blend)
             args["spot_cosine"] = not CYCLES_4
+            if CYCLES_4:
+                to_local = spot_to_local(m[:3, :3])
+                if to_local is None:
+                    report.warn(obj.name, f"Spot light '{obj.name}' has a zero or non-invertible scale, so its "
+                                          f"cone has no shape in Cycles; Tessera uses a round cone. Give the "
+                                          f"light a non-zero scale on every axis.")
+                else:
+                    args["spot_to_local"] = to_local
     elif kind == 'SUN':
         half = 0.5 * float(light.angle)
         if half > 0.0:
