@@ -1,6 +1,63 @@
 #include "texture.h"
 
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
 namespace tessera {
+
+namespace {
+
+// Linear value of each byte: sRGB's EOTF (IEC 61966-2-1) and k / 255.
+struct ByteTables {
+  float srgb[256], linear[256];
+  ByteTables() {
+    for (int k = 0; k < 256; ++k) {
+      const double c = k / 255.0;
+      srgb[k] = float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+      linear[k] = float(c);
+    }
+  }
+};
+const ByteTables kByteTables;
+
+}  // namespace
+
+void Texture::set_bytes(const float* rgba, int w, int h, bool is_srgb) {
+  width = w, height = h, srgb = is_srgb;
+  texels.clear();
+  bytes.resize(size_t(w) * size_t(h));
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, bytes.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      uint32_t packed = 0;
+      for (int c = 0; c < 4; ++c) {
+        const float v = std::clamp(rgba[4 * i + c], 0.0f, 1.0f) * 255.0f + 0.5f;
+        packed |= uint32_t(v) << (8 * c);
+      }
+      bytes[i] = packed;
+    }
+  });
+}
+
+vec4 Texture::average() const {
+  const size_t n = bytes.empty() ? texels.size() : bytes.size();
+  if (n == 0) return vec4(0.0f);
+  const glm::dvec4 sum = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, n, 1 << 14), glm::dvec4(0.0),
+      [&](const tbb::blocked_range<size_t>& r, glm::dvec4 acc) {
+        for (size_t i = r.begin(); i < r.end(); ++i)
+          acc += glm::dvec4(bytes.empty() ? texels[i] : texel_at(i));
+        return acc;
+      },
+      [](const glm::dvec4& a, const glm::dvec4& b) { return a + b; });
+  return vec4(sum / double(n));
+}
+
+vec4 Texture::texel_at(size_t i) const {
+  if (bytes.empty()) return texels[i];
+  const uint32_t b = bytes[i];
+  const float* t = srgb ? kByteTables.srgb : kByteTables.linear;
+  return vec4(t[b & 0xff], t[(b >> 8) & 0xff], t[(b >> 16) & 0xff], kByteTables.linear[b >> 24]);
+}
 
 vec4 Texture::texel(int x, int y) const {
   switch (extension) {
@@ -26,7 +83,7 @@ vec4 Texture::texel(int x, int y) const {
       if (x < 0 || y < 0 || x >= width || y >= height) return vec4(0.0f);
       break;
   }
-  return texels[size_t(y) * width + x];
+  return texel_at(size_t(y) * width + x);
 }
 
 // Catmull-Rom-like cubic B-spline weights as Cycles uses for Cubic (a uniform

@@ -259,14 +259,22 @@ PYBIND11_MODULE(_core, m) {
           py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"))
       .def(
           "add_texture",
-          [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension) {
+          [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension,
+             const std::string& bytes) {
             if (pixels.ndim() != 3 || pixels.shape(2) != 4)
               throw std::invalid_argument("texture pixels must be an array of shape (height, width, 4)");
+            if (bytes != "" && bytes != "sRGB" && bytes != "linear")
+              throw std::invalid_argument("add_texture: bytes must be '', 'sRGB' or 'linear', not '" + bytes + "'");
             Texture t;
-            t.height = int(pixels.shape(0));
-            t.width = int(pixels.shape(1));
-            const vec4* p = reinterpret_cast<const vec4*>(pixels.data());
-            t.texels.assign(p, p + size_t(t.width) * t.height);
+            const int h = int(pixels.shape(0)), w = int(pixels.shape(1));
+            if (bytes.empty()) {
+              t.height = h, t.width = w;
+              const vec4* p = reinterpret_cast<const vec4*>(pixels.data());
+              t.texels.assign(p, p + size_t(w) * h);
+            } else {
+              py::gil_scoped_release release;
+              t.set_bytes(pixels.data(), w, h, bytes == "sRGB");
+            }
             t.interpolation = interpolation == "Closest" ? Texture::Interpolation::Closest
                             : interpolation == "Cubic" || interpolation == "Smart" ? Texture::Interpolation::Cubic
                             : Texture::Interpolation::Linear;
@@ -278,7 +286,18 @@ PYBIND11_MODULE(_core, m) {
             return s.textures.size() - 1;
           },
           py::arg("pixels"), py::arg("interpolation") = "Linear", py::arg("extension") = "REPEAT",
-          "Adds an image texture (linear RGBA, rows bottom to top); returns its index.")
+          py::arg("bytes") = "",
+          "Adds an image texture (RGBA, rows bottom to top); returns its index. bytes='': linear floats; "
+          "'sRGB' or 'linear': an 8-bit image as Blender reads it back (k / 255), stored as bytes and "
+          "converted per texel from sRGB or as is.")
+      .def(
+          "texture_average",
+          [](const Scene& s, size_t i) {
+            if (i >= s.textures.size()) throw std::out_of_range("texture_average: no texture " + std::to_string(i));
+            const vec4 a = s.textures[i].average();
+            return py::make_tuple(a.x, a.y, a.z, a.w);
+          },
+          py::arg("index"), "Mean linear RGBA of a texture's texels.")
       .def(
           "add_material",
           [](Scene& s, std::vector<float> base_color, float metallic, float roughness, float specular, float ior,

@@ -661,3 +661,38 @@ TEST(Materials, DepthOfFieldIsDeterministic) {
   ASSERT_EQ(one.size(), all.size());
   EXPECT_EQ(0, std::memcmp(one.data(), all.data(), one.size() * sizeof(float)));
 }
+
+// 8-bit images are kept as bytes and converted per texel: every byte value
+// gives what the float path stores (sRGB's EOTF, or k / 255 for data and
+// alpha), through every interpolation, and the average is the texels' mean.
+TEST(Textures, ByteTexelsReadAsTheirLinearValues) {
+  for (bool srgb : {true, false}) {
+    std::vector<float> rgba(256 * 4);
+    for (int k = 0; k < 256; ++k)
+      for (int c = 0; c < 4; ++c) rgba[4 * k + c] = float(((k + 37 * c) % 256) / 255.0);
+    Texture t;
+    t.set_bytes(rgba.data(), 256, 1, srgb);
+    t.interpolation = Texture::Interpolation::Closest;
+    EXPECT_TRUE(t.texels.empty());
+    EXPECT_EQ(t.bytes.size(), 256u);
+    auto linear = [&](int k, int c) {
+      const double x = ((k + 37 * c) % 256) / 255.0;
+      return float(!srgb || c == 3 ? x : x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4));
+    };
+    glm::dvec4 mean(0.0);
+    for (int k = 0; k < 256; ++k) {
+      const vec4 v = t.eval(vec2((k + 0.5f) / 256.0f, 0.5f));
+      for (int c = 0; c < 4; ++c) {
+        EXPECT_FLOAT_EQ(v[c], linear(k, c)) << "byte " << k << " channel " << c << (srgb ? " sRGB" : " linear");
+        mean[c] += linear(k, c) / 256.0;
+      }
+    }
+    const vec4 avg = t.average();
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(avg[c], mean[c], 1e-6);
+    // Bilinear between two texels interpolates the linear values.
+    t.interpolation = Texture::Interpolation::Linear;
+    t.extension = Texture::Extension::Extend;
+    const vec4 mid = t.eval(vec2(11.0f / 256.0f, 0.5f));
+    EXPECT_NEAR(mid.x, 0.5f * (linear(10, 0) + linear(11, 0)), 1e-6f);
+  }
+}

@@ -56,15 +56,31 @@ def _remember_average(img, px):
     _image_cache[img.as_pointer()] = None if px is None else tuple(float(x) for x in px.reshape(-1, 4).mean(axis=0))
 
 
-def image_pixels(img):
-    """Linear RGBA float32 (H, W, 4) of a Blender image, rows bottom to top, or None."""
+def image_read_back(img):
+    """Blender's float RGBA (H, W, 4) of an image, rows bottom to top, or None;
+    for an 8-bit image each channel is k / 255, still in the image's colour space."""
     w, h = img.size
     if w == 0 or h == 0:
         return None
     px = np.empty(w * h * 4, dtype=np.float32)
     img.pixels.foreach_get(px)
-    px = px.reshape(h, w, 4)
-    if not img.is_float and img.colorspace_settings.name == 'sRGB':
+    return px.reshape(h, w, 4)
+
+
+def byte_encoding(img):
+    """How the core stores an 8-bit image's bytes ('sRGB' or 'linear'), or ''
+    for a float image (kept as linear floats)."""
+    if img.is_float:
+        return ''
+    return 'sRGB' if img.colorspace_settings.name == 'sRGB' else 'linear'
+
+
+def image_pixels(img):
+    """Linear RGBA float32 (H, W, 4) of a Blender image, rows bottom to top, or None."""
+    px = image_read_back(img)
+    if px is None:
+        return None
+    if byte_encoding(img) == 'sRGB':
         # 8-bit texels read back as k / 255 exactly: a 256-entry table
         # converts them (the power function over every texel took 0.5 s of
         # modern_hall's 0.66 s export).
@@ -128,7 +144,7 @@ class MaterialCache:
         key = (img.as_pointer(), node.interpolation, node.extension)
         if key not in self.textures:
             try:
-                px = image_pixels(img)
+                px = image_read_back(img)
             except RuntimeError:
                 px = None
             if px is None:
@@ -136,8 +152,12 @@ class MaterialCache:
                                            f"using it show Blender's missing-texture pink. Relink or pack the image.")
                 self.textures[key] = None
             else:
-                self.textures[key] = self.scene.add_texture(px, node.interpolation, node.extension)
-                _remember_average(img, px)  # the material's constant needs it next: convert the image once
+                # 8-bit images go to the core as bytes, converted there per texel
+                # (in Python the conversion took most of modern_hall's export).
+                index = self.scene.add_texture(px, node.interpolation, node.extension, byte_encoding(img))
+                self.textures[key] = index
+                # The material's constant needs the average next: from the core's texels.
+                _image_cache[img.as_pointer()] = self.scene.texture_average(index)
         return self.textures[key]
 
 
