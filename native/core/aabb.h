@@ -1,6 +1,7 @@
 // Axis-aligned bounding box and the slab test (Kay & Kajiya 1986; Williams
 // et al. 2005 for the inverse-direction form).
 #pragma once
+#include <cstring>
 #include "math.h"
 
 namespace tessera {
@@ -56,6 +57,15 @@ inline float intersect_box(const vec3& lo, const vec3& hi, const vec3& o_lo, con
 // Per-axis origin nudge for the two-origin slab test: 0 unless the direction
 // component is (near) zero. delta * 1e30 >= 1e10, so the nudged slab spans at
 // least t in [-1e10, 1e10].
+// x with its sign flipped when flip is 1 (0 or 1; a bit operation, no branch).
+inline float flip_sign(float x, int flip) {
+  uint32_t bits;
+  std::memcpy(&bits, &x, 4);
+  bits ^= uint32_t(flip) << 31;
+  std::memcpy(&x, &bits, 4);
+  return x;
+}
+
 inline float parallel_axis_delta(float o, float d) {
   return std::abs(d) < 1e-30f ? std::abs(o) * 1e-6f + 1e-20f : 0.0f;
 }

@@ -68,6 +68,14 @@ struct BuildOptions {
   // Mesh BLAS width: 0 = automatic (8, the AVX2 BVH8, when the CPU has AVX2;
   // else 4, the SSE2 BVH4), 4 or 8 (8 falls back to 4 without AVX2).
   int bvh_width = 0;
+  // Wide BVHs: a binary subtree that the wide SAH prices lower as one leaf of
+  // packed Tri4 blocks (at most two) than as a wide node of its own is
+  // collapsed into one (off: every binary leaf is a leaf, every interior
+  // node that is not opened into its parent a node).
+  bool collapse_small_subtrees = true;
+  // Wide BVHs: each node's leaf blocks stored right after it (off: all nodes
+  // first, then all blocks, both in depth-first order).
+  bool leaves_next_to_parent = true;
 };
 
 struct BVH {

@@ -18,7 +18,7 @@ namespace tessera {
 // unused child has an inverted box (lo = +inf, hi = -inf), which no ray hits.
 struct alignas(64) BVH4Node {
   float box[6][4];      // lo_x, hi_x, lo_y, hi_y, lo_z, hi_z; one lane per child
-  uint32_t child[4];    // interior: node index; leaf: kLeafBit | first block << 3 | (blocks - 1)
+  uint32_t child[4];    // interior: node offset / 64; leaf: kLeafBit | first block offset / 32 << 3 | (blocks - 1)
   uint32_t num_children;
   uint32_t pad[3];
 };
@@ -39,21 +39,41 @@ struct alignas(16) Tri4 {
 };
 static_assert(sizeof(Tri4) == 160, "Tri4 must stay 160 bytes");
 
-struct BVH4 {
-  BVHArray<BVH4Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
-  BVHArray<Tri4> tris;
+// The nodes and Tri4 blocks of a wide BVH share one array, each node followed
+// by the blocks of its leaf children (Embree's allocation order), so the lines
+// after a node, which the hardware prefetcher streams in with it, are its
+// leaves. Node references count 64-byte lines from the start (nodes are
+// cache-line aligned; the root is at 0), leaf references 32-byte units.
+struct alignas(64) BVHLine {
+  unsigned char bytes[64];
+};
+constexpr size_t kNodeUnit = 64;
+constexpr size_t kBlockUnit = 32;
+
+template <typename Node>
+struct WideBVH {
+  BVHArray<BVHLine> mem;
+  uint32_t num_nodes = 0, num_blocks = 0;
   AABB bounds;
   float sah_cost = 0.0f;  // of the binary tree it was collapsed from
 
-  bool empty() const { return nodes.empty(); }
-  size_t memory_bytes() const { return nodes.capacity() * sizeof(BVH4Node) + tris.capacity() * sizeof(Tri4); }
+  bool empty() const { return num_nodes == 0; }
+  const char* base() const { return reinterpret_cast<const char*>(mem.data()); }
+  const Node& node(uint32_t ref) const { return *reinterpret_cast<const Node*>(base() + size_t(ref) * kNodeUnit); }
+  // The first of a leaf's bvh4_leaf_blocks(ref) consecutive blocks.
+  const Tri4* blocks(uint32_t leaf_ref) const {
+    return reinterpret_cast<const Tri4*>(base() + size_t(bvh4_leaf_first(leaf_ref)) * kBlockUnit);
+  }
+  size_t memory_bytes() const { return mem.capacity() * sizeof(BVHLine); }
   int depth() const;
 };
+
+struct BVH4 : WideBVH<BVH4Node> {};
 
 // Collapses a binary BVH whose leaves index triangles in leaf order
 // (tri_verts: 3 per triangle, that order) into a BVH4: each node takes the
 // children of its largest-area descendants until it has four.
-BVH4 collapse_to_bvh4(const BVH& binary, const vec3* tri_verts);
+BVH4 collapse_to_bvh4(const BVH& binary, const vec3* tri_verts, const BuildOptions& options = {});
 
 // SAH cost of a BVH4 (one traversal step per node visit, one per Tri4 block),
 // relative to the root area.

@@ -24,19 +24,10 @@ struct alignas(64) BVH8Node {
 };
 static_assert(sizeof(BVH8Node) == 256, "BVH8Node must stay 256 bytes");
 
-struct BVH8 {
-  BVHArray<BVH8Node> nodes;  // nodes[0] is the root (interior, possibly with one child)
-  BVHArray<Tri4> tris;
-  AABB bounds;
-  float sah_cost = 0.0f;  // of the binary tree it was collapsed from
-
-  bool empty() const { return nodes.empty(); }
-  size_t memory_bytes() const { return nodes.capacity() * sizeof(BVH8Node) + tris.capacity() * sizeof(Tri4); }
-  int depth() const;
-};
+struct BVH8 : WideBVH<BVH8Node> {};
 
 // As collapse_to_bvh4, with up to eight children per node.
-BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts);
+BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts, const BuildOptions& options = {});
 float sah_cost(const BVH8& bvh, const BuildOptions& options = {});
 
 // AVX2 traversal (bvh8_avx2.cpp). Call only when cpu_simd_level() == AVX2.

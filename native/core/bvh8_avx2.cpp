@@ -30,15 +30,17 @@ struct Ray8 {
 
   Ray8(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
     for (int i = 0; i < 3; ++i) {
-      // The same per-axis setup as Ray4 / TraversalRay.
+      // The same per-axis values as Ray4 / TraversalRay, without branches on
+      // the direction's signs (incoherent rays mispredict them).
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       float inv_i = 1.0f / di;
       inv[i] = _mm256_set1_ps(inv_i);
-      near_lo[i] = inv_i >= 0.0f ? 0 : 1;
+      near_lo[i] = int(!(inv_i >= 0.0f));
+      // delta >= 0; near origin o + delta (inv >= 0) or o - delta, far the other.
       const float delta = parallel_axis_delta(origin[i], d[i]);
-      const float o_lo = origin[i] + delta, o_hi = origin[i] - delta;
-      org_near[i] = _mm256_set1_ps(near_lo[i] == 0 ? o_lo : o_hi);
-      org_far[i] = _mm256_set1_ps(near_lo[i] == 0 ? o_hi : o_lo);
+      const float signed_delta = flip_sign(delta, near_lo[i]);
+      org_near[i] = _mm256_set1_ps(origin[i] + signed_delta);
+      org_far[i] = _mm256_set1_ps(origin[i] - signed_delta);
     }
     set_tmax(t_max);
   }
@@ -77,8 +79,8 @@ struct Bvh8Traits {
   }
   static __m128 tri_tmax(const Ray& r) { return r.tmax4; }
   static void set_tmax(Ray& r, float t) { r.set_tmax(t); }
-  static void prefetch(const Node* nodes, uint32_t ref) {
-    const char* p = reinterpret_cast<const char*>(&nodes[ref]);
+  static void prefetch(const char* base, uint32_t ref) {
+    const char* p = base + size_t(ref) * kNodeUnit;
     _mm_prefetch(p, _MM_HINT_T0);
     _mm_prefetch(p + 64, _MM_HINT_T0);
     _mm_prefetch(p + 128, _MM_HINT_T0);
@@ -90,18 +92,18 @@ struct Bvh8Traits {
 
 template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
-  if (bvh.nodes.empty()) return false;
+  if (bvh.empty()) return false;
   Ray8 ray(o, d, tmax);
-  return wide_intersect<Bvh8Traits, kOrdered>(bvh.nodes.data(), bvh.tris.data(), ray, tmax, hit);
+  return wide_intersect<Bvh8Traits, kOrdered>(bvh.base(), ray, tmax, hit);
 }
 
 template bool bvh8_intersect_avx2<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
 template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
 
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
-  if (bvh.nodes.empty()) return false;
+  if (bvh.empty()) return false;
   Ray8 ray(o, d, tmax);
-  return wide_occluded<Bvh8Traits>(bvh.nodes.data(), bvh.tris.data(), ray);
+  return wide_occluded<Bvh8Traits>(bvh.base(), ray);
 }
 
 }  // namespace tessera

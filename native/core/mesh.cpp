@@ -44,10 +44,10 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
   const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
   if (width == 8) {
-    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data());
+    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data(), opt);
     mesh.bvh8.sah_cost = sah_cost(binary, options);
   } else {
-    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data());
+    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data(), opt);
     mesh.bvh.sah_cost = sah_cost(binary, options);
   }
   if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);

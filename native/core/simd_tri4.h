@@ -23,9 +23,10 @@ struct TriRay4 {
 
   TriRay4(const vec3& origin, const vec3& d) : shear(d), o(origin) {
     kx = shear.kx, ky = shear.ky, kz = shear.kz;
-    okx = _mm_set1_ps(origin[kx]);
-    oky = _mm_set1_ps(origin[ky]);
-    okz = _mm_set1_ps(origin[kz]);
+    const float ov[3] = {origin.x, origin.y, origin.z};  // no switch on the run-time index
+    okx = _mm_set1_ps(ov[kx]);
+    oky = _mm_set1_ps(ov[ky]);
+    okz = _mm_set1_ps(ov[kz]);
     sx = _mm_set1_ps(shear.sx);
     sy = _mm_set1_ps(shear.sy);
     sz = _mm_set1_ps(shear.sz);

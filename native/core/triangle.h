@@ -12,14 +12,25 @@ struct RayShear {
   int kx, ky, kz;
   float sx, sy, sz;
 
+  // Branch-free (the same axes and values as max_dimension and a swap):
+  // incoherent rays mispredicted every data-dependent branch here, and glm's
+  // operator[] with a run-time index is a switch.
   explicit RayShear(const vec3& d) {
-    kz = max_dimension(glm::abs(d));
-    kx = (kz + 1) % 3;
-    ky = (kx + 1) % 3;
-    if (d[kz] < 0.0f) std::swap(kx, ky);  // keep the winding order
-    sx = d[kx] / d[kz];
-    sy = d[ky] / d[kz];
-    sz = 1.0f / d[kz];
+    const float dv[3] = {d.x, d.y, d.z};
+    const float ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
+    // max_dimension's choice from its three comparisons, by table.
+    static constexpr int8_t kMax[8] = {2, 2, 2, 0, 1, 2, 1, 0};
+    const int idx = int(ax > ay) | int(ax > az) << 1 | int(ay > az) << 2;
+    kz = kMax[idx];
+    static constexpr int8_t kNext[3] = {1, 2, 0};
+    kx = kNext[kz];
+    ky = kNext[kx];
+    const int swap = -int(dv[kz] < 0.0f);  // keep the winding order
+    const int t = (kx ^ ky) & swap;
+    kx ^= t, ky ^= t;
+    sx = dv[kx] / dv[kz];
+    sy = dv[ky] / dv[kz];
+    sz = 1.0f / dv[kz];
   }
 };
 

@@ -6,7 +6,7 @@
 //   test(node, ray, dist) -> mask  slab test of the children, entry distances in dist
 //   tri_tmax(ray) -> __m128        current tmax for the triangle test
 //   set_tmax(ray, t)               shrink the ray after a hit
-//   prefetch(nodes, ref)           fetch a child node's cache lines
+//   prefetch(base, ref)            fetch a child node's cache lines
 // Included after simd_tri4.h by bvh4.cpp (SSE2) and bvh8_avx2.cpp (inside its
 // AVX2 target region), so each width compiles for its own instruction set;
 // everything here has internal linkage.
@@ -22,9 +22,17 @@ struct WideStackEntry {
   float t;
 };
 
+template <typename Node>
+inline const Node& wide_node(const char* base, uint32_t ref) {
+  return *reinterpret_cast<const Node*>(base + size_t(ref) * kNodeUnit);
+}
+inline const Tri4* wide_leaf(const char* base, uint32_t ref) {
+  return reinterpret_cast<const Tri4*>(base + size_t(bvh4_leaf_first(ref)) * kBlockUnit);
+}
+
+// base: the tree's arena (WideBVH::base()).
 template <typename Traits, bool kOrdered>
-bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typename Traits::Ray& ray, float& tmax,
-                    BVH4Hit& hit) {
+bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BVH4Hit& hit) {
   constexpr int kWidth = Traits::kWidth;
   WideStackEntry stack[Traits::kStackSize];
   int sp = 0;
@@ -33,7 +41,7 @@ bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typena
   float t_best = tmax;
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
-      const auto& n = nodes[ref];
+      const auto& n = wide_node<typename Traits::Node>(base, ref);
       // The child references sit apart from the boxes (the BVH8's last
       // line): ask for them now, next to the box loads, instead of after the
       // test has picked a child, which serialises two misses per level.
@@ -60,11 +68,11 @@ bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typena
         WideStackEntry e[kWidth];
         int k = 0;
         e[k++] = {n.child[first], dist[first]};
-        if (!bvh4_is_leaf(n.child[first])) Traits::prefetch(nodes, n.child[first]);
+        if (!bvh4_is_leaf(n.child[first])) Traits::prefetch(base, n.child[first]);
         for (int m = mask; m; m &= m - 1) {
           const int c = __builtin_ctz(m);
           WideStackEntry x{n.child[c], dist[c]};
-          if (!bvh4_is_leaf(x.ref)) Traits::prefetch(nodes, x.ref);
+          if (!bvh4_is_leaf(x.ref)) Traits::prefetch(base, x.ref);
           int j = k++;
           while (j > 0 && e[j - 1].t > x.t) {
             e[j] = e[j - 1];
@@ -77,8 +85,9 @@ bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typena
         continue;
       }
     } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
+      const Tri4* tris = wide_leaf(base, ref);
+      const uint32_t blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = 0; b < blocks; ++b) {
         __m128 t, u, v;
         int mask = intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v);
         if (mask == 0) continue;
@@ -112,13 +121,13 @@ bool wide_intersect(const typename Traits::Node* nodes, const Tri4* tris, typena
 }
 
 template <typename Traits>
-bool wide_occluded(const typename Traits::Node* nodes, const Tri4* tris, typename Traits::Ray& ray) {
+bool wide_occluded(const char* base, typename Traits::Ray& ray) {
   uint32_t stack[Traits::kStackSize];
   int sp = 0;
   uint32_t ref = 0;
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
-      const auto& n = nodes[ref];
+      const auto& n = wide_node<typename Traits::Node>(base, ref);
       _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       alignas(32) float dist[Traits::kWidth];
       int mask = Traits::test(n, ray, dist);
@@ -129,8 +138,9 @@ bool wide_occluded(const typename Traits::Node* nodes, const Tri4* tris, typenam
         continue;
       }
     } else {
-      const uint32_t first = bvh4_leaf_first(ref), blocks = bvh4_leaf_blocks(ref);
-      for (uint32_t b = first; b < first + blocks; ++b) {
+      const Tri4* tris = wide_leaf(base, ref);
+      const uint32_t blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = 0; b < blocks; ++b) {
         __m128 t, u, v;
         if (intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v)) return true;
       }

@@ -4,6 +4,10 @@
 //   bench_bvh [--mode compare|builders|all] [--runs N] [--res R] [--threads 1,2]
 //             [--bins 4,8,16,32,64] [--builder-threads T] [--builder-res R] [--builder-meshes a,b]
 //             [--clock wall|cpu] [--stat median|min] mesh files...
+//   bench_bvh --mode trace [--kind primary|diffuse|random|shadow|all] [--engine tessera|sse2|embree] ...
+//             (one engine only, for perf)
+//   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
+//             (default tree against one built with those options, same traversal, alternating)
 //
 // Both engines trace exactly the same ray arrays, chunked over TBB
 // parallel_for inside a task_arena of the given thread count. Every figure is
@@ -311,6 +315,9 @@ struct Config {
   int builder_res = 512;
   std::vector<std::string> meshes;
   std::vector<std::string> builder_meshes;  // empty: all
+  std::string kind = "all";         // --mode trace
+  std::string engine = "tessera";   // --mode trace: tessera, sse2 or embree
+  std::string ab_base;              // --mode ab: options of the base tree
 };
 
 // ---------------------------------------------------------------- modes
@@ -419,6 +426,86 @@ void compare(const Config& cfg) {
   std::fflush(stdout);
 }
 
+// --mode trace: one engine on one ray kind, repeated, for profilers (perf)
+// and A/B runs; prints Mrays/s per pass.
+void trace_only(const Config& cfg) {
+  for (const std::string& path : cfg.meshes) {
+    TriangleSoup soup = load_mesh_file(path);
+    BuildOptions opt;
+    if (cfg.engine == "sse2") opt.bvh_width = 4;
+    const Mesh mesh = tessera_build(soup, opt);
+    RTCDevice dev = rtcNewDevice("threads=1");
+    EmbreeScene es;
+    if (cfg.engine == "embree") embree_build(dev, soup, es);
+    RaySets rs = make_rays(mesh, cfg.res);
+    if (getenv("MISS")) {  // rays that miss the root box: the per-ray cost outside the traversal loop
+      const vec3 c = mesh.bounds().center();
+      const float radius = glm::length(mesh.bounds().extent());
+      for (RayArray& rays : rs.sets)
+        for (size_t i = 0; i < rays.size(); ++i) rays.o[i] = c + 4.0f * radius * rays.d[i];
+    }
+    for (const RayArray& rays : rs.sets) {
+      if (rays.kind != cfg.kind && cfg.kind != "all") continue;
+      Results out;
+      out.t.assign(rays.size(), -1.0f);
+      std::vector<double> st;
+      for (int r = 0; r < cfg.runs; ++r)
+        st.push_back(run_parallel(1, rays.size(), [&](size_t b, size_t e) {
+          if (cfg.engine == "embree") embree_trace(es.scene, rays, b, e, out);
+          else tessera_trace(mesh, rays, b, e, out, TraversalOrder::Ordered);
+        }));
+      std::printf("%s %s %s %.3f Mrays/s\n", basename_of(path).c_str(), rays.kind.c_str(), cfg.engine.c_str(),
+                  rays.size() / median(st) * 1e-6);
+      std::fflush(stdout);
+    }
+    es.release();
+    rtcReleaseDevice(dev);
+  }
+}
+
+// --mode ab: the default tree against one built with the options named by
+// --ab-base (comma-separated: no-collapse, separate-leaves), both traced by
+// the default traversal, alternating pass by pass over the same rays in one
+// process; prints both and the median of the per-pass ratios.
+void ab(const Config& cfg) {
+  for (const std::string& path : cfg.meshes) {
+    TriangleSoup soup = load_mesh_file(path);
+    const Mesh mesh = tessera_build(soup, BuildOptions{});
+    BuildOptions base_opt;
+    if (cfg.ab_base.find("no-collapse") != std::string::npos) base_opt.collapse_small_subtrees = false;
+    if (cfg.ab_base.find("separate-leaves") != std::string::npos) base_opt.leaves_next_to_parent = false;
+    const Mesh base = tessera_build(soup, base_opt);
+    auto nodes = [](const Mesh& m) { return m.width() == 8 ? m.bvh8.num_nodes : m.bvh.num_nodes; };
+    auto blocks = [](const Mesh& m) { return m.width() == 8 ? m.bvh8.num_blocks : m.bvh.num_blocks; };
+    auto wide_sah = [](const Mesh& m) { return m.width() == 8 ? sah_cost(m.bvh8) : sah_cost(m.bvh); };
+    std::printf("%s: nodes %u / %u, blocks %u / %u, wide SAH %.2f / %.2f, MB %.1f / %.1f (base / new)\n",
+                basename_of(path).c_str(), nodes(base), nodes(mesh), blocks(base), blocks(mesh), wide_sah(base),
+                wide_sah(mesh), base.memory_bytes() / 1048576.0, mesh.memory_bytes() / 1048576.0);
+    RaySets rs = make_rays(mesh, cfg.res);
+    for (const RayArray& rays : rs.sets) {
+      if (rays.kind != cfg.kind && cfg.kind != "all") continue;
+      Results a, b;
+      a.t.assign(rays.size(), -1.0f);
+      b.t.assign(rays.size(), -1.0f);
+      std::vector<double> sa, sb, ratio;
+      for (int r = 0; r < cfg.runs; ++r) {
+        sb.push_back(run_parallel(1, rays.size(), [&](size_t i0, size_t i1) {
+          tessera_trace(base, rays, i0, i1, b, TraversalOrder::Ordered);
+        }));
+        sa.push_back(run_parallel(1, rays.size(), [&](size_t i0, size_t i1) {
+          tessera_trace(mesh, rays, i0, i1, a, TraversalOrder::Ordered);
+        }));
+        ratio.push_back(sb.back() / sa.back());
+      }
+      size_t bad = 0;
+      agreement(a, b, &bad);
+      std::printf("%-20s %-8s base %6.2f new %6.2f Mrays/s  new/base %.3f  (%zu differ)\n", basename_of(path).c_str(),
+                  rays.kind.c_str(), rays.size() / median(sb) * 1e-6, rays.size() / median(sa) * 1e-6, median(ratio), bad);
+      std::fflush(stdout);
+    }
+  }
+}
+
 void builders(const Config& cfg) {
   const int nt = cfg.builder_threads;
   std::printf("## Tessera builders and traversal order\n\n");
@@ -491,6 +578,9 @@ int main(int argc, char** argv) {
       return argv[++i];
     };
     if (a == "--mode") cfg.mode = next();
+    else if (a == "--kind") cfg.kind = next();
+    else if (a == "--engine") cfg.engine = next();
+    else if (a == "--ab-base") cfg.ab_base = next();
     else if (a == "--runs") cfg.runs = std::stoi(next());
     else if (a == "--clock") g_cpu_clock = next() == "cpu";
     else if (a == "--stat") g_min_stat = next() == "min";
@@ -515,5 +605,7 @@ int main(int argc, char** argv) {
   }
   if (cfg.mode == "compare" || cfg.mode == "all") compare(cfg);
   if (cfg.mode == "builders" || cfg.mode == "all") builders(cfg);
+  if (cfg.mode == "trace") trace_only(cfg);
+  if (cfg.mode == "ab") ab(cfg);
   return 0;
 }

@@ -75,7 +75,9 @@ void check_binary_invariants(const BVH& bvh, const std::vector<AABB>& boxes) {
 // boxes nest.
 template <int N, typename Tree>
 void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
-  ASSERT_FALSE(bvh.nodes.empty()) << "N " << N << " w " << mesh.width() << " " << mesh.bvh.nodes.size() << " " << mesh.bvh8.nodes.size();
+  ASSERT_FALSE(bvh.empty()) << "N " << N << " w " << mesh.width() << " " << mesh.bvh.num_nodes << " " << mesh.bvh8.num_nodes;
+  const size_t arena = bvh.mem.size() * sizeof(BVHLine);
+  size_t nodes_seen = 0, blocks_seen = 0;
   ASSERT_EQ(mesh.tri_verts.size(), 3 * mesh.prim_ids.size());
   std::vector<int> seen(num_triangles, 0);
   std::vector<std::pair<uint32_t, AABB>> stack{{0u, bvh.bounds}};
@@ -83,8 +85,9 @@ void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
   while (!stack.empty()) {
     auto [i, parent] = stack.back();
     stack.pop_back();
-    ASSERT_LT(i, bvh.nodes.size());
-    const auto& n = bvh.nodes[i];
+    ASSERT_LE((size_t(i) + 1) * kNodeUnit, arena);
+    const auto& n = bvh.node(i);
+    ++nodes_seen;
     ASSERT_GE(n.num_children, 1u);
     ASSERT_LE(n.num_children, uint32_t(N));
     for (uint32_t c = 0; c < uint32_t(N); ++c) {
@@ -102,9 +105,10 @@ void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
       }
       uint32_t lo = ~0u, hi = 0;
       std::vector<uint32_t> ks;
-      for (uint32_t b = bvh4_leaf_first(ref); b < bvh4_leaf_first(ref) + bvh4_leaf_blocks(ref); ++b) {
-        ASSERT_LT(b, bvh.tris.size());
-        const Tri4& t = bvh.tris[b];
+      ASSERT_LE(size_t(bvh4_leaf_first(ref)) * kBlockUnit + bvh4_leaf_blocks(ref) * sizeof(Tri4), arena);
+      blocks_seen += bvh4_leaf_blocks(ref);
+      for (uint32_t b = 0; b < bvh4_leaf_blocks(ref); ++b) {
+        const Tri4& t = bvh.blocks(ref)[b];
         for (int lane = 0; lane < 4; ++lane) {
           const uint32_t k = t.prim[lane];
           ASSERT_LT(k, mesh.prim_ids.size());
@@ -124,6 +128,8 @@ void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
     }
   }
   EXPECT_EQ(leaves_total, num_triangles);
+  EXPECT_EQ(nodes_seen, bvh.num_nodes);
+  EXPECT_EQ(blocks_seen, bvh.num_blocks);
   for (size_t t = 0; t < num_triangles; ++t) ASSERT_EQ(seen[t], 1) << "triangle " << t << " not in exactly one leaf";
 }
 
@@ -321,9 +327,8 @@ TEST(BVH, EmptyMesh) {
   EXPECT_FALSE(occluded_mesh(mesh, vec3(0), vec3(0, 0, 1), kInf));
 }
 
-// The collapse sizes its arrays exactly (one allocation each, no slack), and
-// the traversed arrays are cache-line aligned; those of 2 MB and more start
-// on a 2 MB boundary (large pages).
+// The collapse sizes its arena exactly (one allocation, no slack), and it is
+// cache-line aligned; one of 2 MB or more starts on a 2 MB boundary (large pages).
 TEST(BVH, WideArraysAreExactAndAligned) {
   TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/igea.ply");
   for (int w : widths()) {
@@ -335,9 +340,70 @@ TEST(BVH, WideArraysAreExactAndAligned) {
       EXPECT_EQ(p % 64, 0u);
       if (bytes >= (size_t(2) << 20)) EXPECT_EQ(p % (size_t(2) << 20), 0u) << bytes << " bytes";
     };
-    if (w == 8) check(mesh.bvh8.nodes), check(mesh.bvh8.tris);
-    else check(mesh.bvh.nodes), check(mesh.bvh.tris);
-    EXPECT_GE(mesh.width() == 8 ? mesh.bvh8.tris.size() * sizeof(Tri4) : mesh.bvh.tris.size() * sizeof(Tri4),
+    if (w == 8) check(mesh.bvh8.mem);
+    else check(mesh.bvh.mem);
+    EXPECT_GE(mesh.width() == 8 ? mesh.bvh8.num_blocks * sizeof(Tri4) : mesh.bvh.num_blocks * sizeof(Tri4),
               size_t(2) << 20) << "igea's triangle blocks should span large pages";
+  }
+}
+
+// Each wide node's leaf blocks sit right behind it in the arena, in child
+// order (the lines the hardware prefetcher streams in with the node).
+TEST(BVH, LeafBlocksFollowTheirNode) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
+  for (int w : widths()) {
+    const Mesh mesh = make_mesh(s, with_width({}, w));
+    auto check = [](const auto& bvh, size_t node_bytes) {
+      size_t checked = 0;
+      std::vector<uint32_t> stack{0u};
+      while (!stack.empty()) {
+        const uint32_t i = stack.back();
+        stack.pop_back();
+        const auto& n = bvh.node(i);
+        size_t next = size_t(i) * kNodeUnit + node_bytes;
+        for (uint32_t c = 0; c < n.num_children; ++c) {
+          const uint32_t ref = n.child[c];
+          if (!bvh4_is_leaf(ref)) {
+            stack.push_back(ref);
+            continue;
+          }
+          ASSERT_EQ(size_t(bvh4_leaf_first(ref)) * kBlockUnit, next) << "node " << i << " child " << c;
+          next += bvh4_leaf_blocks(ref) * sizeof(Tri4);
+          ++checked;
+        }
+      }
+      EXPECT_GT(checked, 1000u);
+    };
+    if (mesh.width() == 8) check(mesh.bvh8, sizeof(BVH8Node));
+    else check(mesh.bvh, sizeof(BVH4Node));
+  }
+}
+
+// Small subtrees collapsed into packed multi-block leaves where the wide SAH
+// prices them lower: fewer nodes, no higher SAH than without, and the same
+// hits (see also the brute-force tests, which run with the default options).
+TEST(BVH, SmallSubtreesCollapseIntoLeaves) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/igea.ply");
+  for (int w : widths()) {
+    BuildOptions off = with_width({}, w);
+    off.collapse_small_subtrees = false;
+    const Mesh a = make_mesh(s, with_width({}, w)), b = make_mesh(s, off);
+    auto nodes = [](const Mesh& m) { return m.width() == 8 ? m.bvh8.num_nodes : m.bvh.num_nodes; };
+    auto wide_sah = [](const Mesh& m) { return m.width() == 8 ? sah_cost(m.bvh8) : sah_cost(m.bvh); };
+    EXPECT_LT(nodes(a), nodes(b) * 9 / 10) << "width " << w;
+    EXPECT_LE(wide_sah(a), wide_sah(b)) << "width " << w;
+    const AABB box = a.bounds();
+    const vec3 c = box.center();
+    const float r = glm::length(box.extent());
+    for (int i = 0; i < 2000; ++i) {
+      const float u = (i + 0.5f) / 2000.0f, phi = 2.39996323f * i;
+      const vec3 d(std::sqrt(1 - u * u) * std::cos(phi), std::sqrt(1 - u * u) * std::sin(phi), u);
+      const vec3 o = c - r * d + 0.01f * r * vec3(std::sin(3.0f * i), std::cos(5.0f * i), 0.0f);
+      float ta = kInf, tb = kInf;
+      MeshHit ha, hb;
+      const bool hit_a = intersect_mesh(a, o, d, ta, ha), hit_b = intersect_mesh(b, o, d, tb, hb);
+      ASSERT_EQ(hit_a, hit_b) << "ray " << i;
+      if (hit_a) ASSERT_EQ(ha.t, hb.t) << "ray " << i;
+    }
   }
 }

@@ -240,3 +240,27 @@ TEST(Triangle, Bvh8HitsEqualBvh4BitForBit) {
   }
   EXPECT_GT(hits, 10000);
 }
+
+// RayShear picks its axes without branches (a table over max_dimension's
+// comparisons and a masked swap): the same axes and values as the
+// max_dimension and swap form, on every sign and ordering of the components
+// (ties, zeros and negative zeros included).
+TEST(Intersection, BranchFreeShearMatchesMaxDimension) {
+  const float vals[] = {0.0f, -0.0f, 0.25f, -0.25f, 0.5f, -0.5f, 1.0f, -1.0f};
+  for (float x : vals)
+    for (float y : vals)
+      for (float z : vals) {
+        const vec3 d(x, y, z);
+        if (d == vec3(0.0f)) continue;
+        int kz = max_dimension(glm::abs(d));
+        int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
+        if (d[kz] < 0.0f) std::swap(kx, ky);
+        const RayShear s(d);
+        ASSERT_EQ(s.kz, kz) << x << " " << y << " " << z;
+        ASSERT_EQ(s.kx, kx) << x << " " << y << " " << z;
+        ASSERT_EQ(s.ky, ky) << x << " " << y << " " << z;
+        ASSERT_EQ(s.sx, d[kx] / d[kz]);
+        ASSERT_EQ(s.sy, d[ky] / d[kz]);
+        ASSERT_EQ(s.sz, 1.0f / d[kz]);
+      }
+}
