@@ -25,24 +25,68 @@ vec3 rotate(const vec3& v, const vec3& k, float theta) {
   return v * c + glm::cross(k, v) * s + k * (glm::dot(k, v) * (1.0f - c));
 }
 
+// A LightBounds with its cone angles themselves: the build unions bounds
+// hundreds of thousands of times, and the arc cosines were most of its time.
+struct BuildBounds {
+  LightBounds lb;
+  float theta_o = 0.0f, theta_e = kPi / 2;  // acos of lb.cos_theta_o, lb.cos_theta_e
+
+  BuildBounds() = default;
+  explicit BuildBounds(const LightBounds& b)
+      : lb(b), theta_o(safe_acos(b.cos_theta_o)), theta_e(safe_acos(b.cos_theta_e)) {}
+};
+
+// Smallest bounds holding a and b: box, power, and the smallest cone holding
+// both cones of normals (pbrt-v4 DirectionCone Union).
+BuildBounds union_bounds(const BuildBounds& a, const BuildBounds& b) {
+  if (a.lb.phi <= 0.0f) return b;
+  if (b.lb.phi <= 0.0f) return a;
+  BuildBounds u;
+  u.lb.bounds = a.lb.bounds;
+  u.lb.bounds.grow(b.lb.bounds);
+  u.lb.phi = a.lb.phi + b.lb.phi;
+  u.lb.two_sided = a.lb.two_sided || b.lb.two_sided;
+  u.lb.cos_theta_e = std::min(a.lb.cos_theta_e, b.lb.cos_theta_e);
+  u.theta_e = std::max(a.theta_e, b.theta_e);
+  const float theta_a = a.theta_o, theta_b = b.theta_o;
+  const vec3 &wa = a.lb.w, &wb = b.lb.w;
+  const float theta_d = glm::dot(wa, wb) < 0.0f ? kPi - 2.0f * std::asin(std::min(1.0f, glm::length(wa + wb) / 2.0f))
+                                                : 2.0f * std::asin(std::min(1.0f, glm::length(wb - wa) / 2.0f));
+  if (std::min(theta_d + theta_b, kPi) <= theta_a) {
+    u.lb.w = wa, u.lb.cos_theta_o = a.lb.cos_theta_o, u.theta_o = theta_a;
+  } else if (std::min(theta_d + theta_a, kPi) <= theta_b) {
+    u.lb.w = wb, u.lb.cos_theta_o = b.lb.cos_theta_o, u.theta_o = theta_b;
+  } else {
+    const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
+    const vec3 axis = glm::cross(wa, wb);
+    if (theta_o >= kPi || glm::dot(axis, axis) == 0.0f) {
+      u.lb.w = wa, u.lb.cos_theta_o = -1.0f, u.theta_o = kPi;  // the whole sphere
+    } else {
+      u.lb.w = glm::normalize(rotate(wa, glm::normalize(axis), theta_o - theta_a));
+      u.lb.cos_theta_o = std::cos(theta_o);
+      u.theta_o = theta_o;
+    }
+  }
+  return u;
+}
+
 // Solid-angle measure of the directions a cone of normals (theta_o) with
 // emission spread theta_e can emit into (Conty Estevez and Kulla 2018, eq. 1).
-float m_omega(const LightBounds& lb) {
-  const float theta_o = safe_acos(lb.cos_theta_o), theta_e = safe_acos(lb.cos_theta_e);
-  const float theta_w = std::min(theta_o + theta_e, kPi);
-  const float sin_o = std::sin(theta_o);
-  return 2.0f * kPi * (1.0f - lb.cos_theta_o) +
-         0.5f * kPi * (2.0f * theta_w * sin_o - std::cos(theta_o - 2.0f * theta_w) - 2.0f * theta_o * sin_o + lb.cos_theta_o);
+float m_omega(const BuildBounds& b) {
+  const float theta_o = b.theta_o, theta_w = std::min(theta_o + b.theta_e, kPi);
+  const float cos_o = b.lb.cos_theta_o, sin_o = std::sin(theta_o);
+  return 2.0f * kPi * (1.0f - cos_o) +
+         0.5f * kPi * (2.0f * theta_w * sin_o - std::cos(theta_o - 2.0f * theta_w) - 2.0f * theta_o * sin_o + cos_o);
 }
 
 // Cost of a node for the split heuristic (SAOH): power x orientation
 // measure x surface area, stretched along the split axis (pbrt-v4 EvaluateCost).
-float saoh_cost(const LightBounds& lb, const AABB& parent, int axis) {
+float saoh_cost(const BuildBounds& b, const AABB& parent, int axis) {
   const vec3 e = parent.extent();
   const float kr = max_component(e) / std::max(e[axis], 1e-30f);
-  const vec3 be = lb.bounds.extent();
+  const vec3 be = b.lb.bounds.extent();
   const float area = 2.0f * (be.x * be.y + be.y * be.z + be.z * be.x);
-  return lb.phi * m_omega(lb) * kr * area;
+  return b.lb.phi * m_omega(b) * kr * area;
 }
 
 // Below this depth the SAOH gives way to splits by count (log2 of the rest).
@@ -94,37 +138,6 @@ float ImportanceBounds::importance(const vec3& p, const vec3& n) const {
     imp *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
   }
   return std::max(imp, 0.0f);
-}
-
-LightBounds union_bounds(const LightBounds& a, const LightBounds& b) {
-  if (a.phi <= 0.0f) return b;
-  if (b.phi <= 0.0f) return a;
-  LightBounds u;
-  u.bounds = a.bounds;
-  u.bounds.grow(b.bounds);
-  u.phi = a.phi + b.phi;
-  u.two_sided = a.two_sided || b.two_sided;
-  u.cos_theta_e = std::min(a.cos_theta_e, b.cos_theta_e);
-  // Smallest cone holding both cones of normals (pbrt-v4 DirectionCone Union).
-  const float theta_a = safe_acos(a.cos_theta_o), theta_b = safe_acos(b.cos_theta_o);
-  const float dot = glm::dot(a.w, b.w);
-  const float theta_d = dot < 0.0f ? kPi - 2.0f * std::asin(std::min(1.0f, glm::length(a.w + b.w) / 2.0f))
-                                   : 2.0f * std::asin(std::min(1.0f, glm::length(b.w - a.w) / 2.0f));
-  if (std::min(theta_d + theta_b, kPi) <= theta_a) {
-    u.w = a.w, u.cos_theta_o = a.cos_theta_o;
-  } else if (std::min(theta_d + theta_a, kPi) <= theta_b) {
-    u.w = b.w, u.cos_theta_o = b.cos_theta_o;
-  } else {
-    const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
-    const vec3 axis = glm::cross(a.w, b.w);
-    if (theta_o >= kPi || glm::dot(axis, axis) == 0.0f) {
-      u.w = a.w, u.cos_theta_o = -1.0f;  // the whole sphere
-    } else {
-      u.w = glm::normalize(rotate(a.w, glm::normalize(axis), theta_o - theta_a));
-      u.cos_theta_o = std::cos(theta_o);
-    }
-  }
-  return u;
 }
 
 void ImportanceBounds4::set(int k, const ImportanceBounds& b) {
@@ -192,6 +205,22 @@ void ImportanceBounds4::importance(const vec3& p, const vec3& n, float out[4]) c
   _mm_storeu_ps(out, _mm_and_ps(lit, _mm_max_ps(imp, zero)));
 }
 
+// Builds the binary SAOH tree over the lights, then collapses it into the
+// 4-wide nodes of `bvh`.
+struct LightBVH::Builder {
+  struct BinaryNode {
+    BuildBounds bounds;
+    uint32_t left = 0, right = 0;  // children; a leaf's light id in `left`
+    bool leaf = false;
+  };
+  std::vector<BuildBounds> lights;
+  std::vector<BinaryNode> binary;
+  LightBVH& bvh;
+
+  uint32_t build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth);
+  uint32_t collapse(uint32_t b, uint32_t parent, int parent_lane);
+};
+
 void LightBVH::build(const std::vector<LightBounds>& lights) {
   nodes_.clear();
   place_.assign(lights.size(), ~0u);
@@ -199,27 +228,28 @@ void LightBVH::build(const std::vector<LightBounds>& lights) {
   for (uint32_t i = 0; i < lights.size(); ++i)
     if (lights[i].phi > 0.0f) ids.push_back(i);
   if (ids.empty()) return;
-  std::vector<BinaryNode> binary;
-  binary.reserve(2 * ids.size());
-  build_binary(ids, 0, ids.size(), lights, 0, binary);
+  Builder builder{std::vector<BuildBounds>(lights.size()), {}, *this};
+  for (uint32_t i : ids) builder.lights[i] = BuildBounds(lights[i]);
+  builder.binary.reserve(2 * ids.size());
+  builder.build_binary(ids, 0, ids.size(), 0);
   nodes_.reserve(ids.size() / 2 + 1);
-  collapse(binary, 0, ~0u, 0);
+  builder.collapse(0, ~0u, 0);
 }
 
-uint32_t LightBVH::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end,
-                                const std::vector<LightBounds>& lights, int depth, std::vector<BinaryNode>& out) {
-  const uint32_t node = uint32_t(out.size());
-  out.emplace_back();
+uint32_t LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth) {
+  const uint32_t node = uint32_t(binary.size());
+  binary.emplace_back();
   if (end - begin == 1) {
-    out[node].bounds = lights[ids[begin]];
-    out[node].leaf = true;
-    out[node].left = ids[begin];
+    binary[node].bounds = lights[ids[begin]];
+    binary[node].leaf = true;
+    binary[node].left = ids[begin];
     return node;
   }
+  auto centre = [&](uint32_t id) { return lights[id].lb.bounds.center(); };
   AABB bounds, centroids;
   for (size_t i = begin; i < end; ++i) {
-    bounds.grow(lights[ids[i]].bounds);
-    centroids.grow(lights[ids[i]].bounds.center());
+    bounds.grow(lights[ids[i]].lb.bounds);
+    centroids.grow(centre(ids[i]));
   }
   // Split by the SAOH over 12 buckets per axis (pbrt-v4 BVHLightSampler::
   // buildBVH); by count at the middle of the widest axis when the centroids
@@ -228,25 +258,28 @@ uint32_t LightBVH::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t
   const int widest = max_dimension(centroids.extent());
   bool split = false;
   if (depth < kMaxDepth && max_component(centroids.extent()) > 0.0f) {
-    constexpr int kBuckets = 12;
+    // No more buckets than lights: most nodes hold a few lights, and sweeping
+    // 12 mostly empty buckets on each axis was most of the build.
+    constexpr int kMaxBuckets = 12;
+    const int buckets = int(std::min<size_t>(kMaxBuckets, end - begin));
     float best_cost = kInf;
     int best_axis = -1, best_bucket = -1;
     for (int axis = 0; axis < 3; ++axis) {
       const float lo = centroids.lo[axis], ext = centroids.hi[axis] - lo;
       if (!(ext > 0.0f)) continue;
-      LightBounds bucket[kBuckets];
+      BuildBounds bucket[kMaxBuckets];
       for (size_t i = begin; i < end; ++i) {
-        const int b = bucket_index(lights[ids[i]].bounds.center()[axis], lo, ext, kBuckets);
+        const int b = bucket_index(centre(ids[i])[axis], lo, ext, buckets);
         bucket[b] = union_bounds(bucket[b], lights[ids[i]]);
       }
       // Bounds of the buckets above each split, then one sweep from below.
-      LightBounds above[kBuckets];
-      above[kBuckets - 1] = bucket[kBuckets - 1];
-      for (int b = kBuckets - 2; b > 0; --b) above[b] = union_bounds(bucket[b], above[b + 1]);
-      LightBounds below;
-      for (int b = 0; b < kBuckets - 1; ++b) {
+      BuildBounds above[kMaxBuckets];
+      above[buckets - 1] = bucket[buckets - 1];
+      for (int b = buckets - 2; b > 0; --b) above[b] = union_bounds(bucket[b], above[b + 1]);
+      BuildBounds below;
+      for (int b = 0; b < buckets - 1; ++b) {
         below = union_bounds(below, bucket[b]);
-        if (below.phi <= 0.0f || above[b + 1].phi <= 0.0f) continue;
+        if (below.lb.phi <= 0.0f || above[b + 1].lb.phi <= 0.0f) continue;
         const float cost = saoh_cost(below, bounds, axis) + saoh_cost(above[b + 1], bounds, axis);
         if (cost < best_cost) best_cost = cost, best_axis = axis, best_bucket = b;
       }
@@ -254,7 +287,7 @@ uint32_t LightBVH::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t
     if (best_axis >= 0) {
       const float lo = centroids.lo[best_axis], ext = centroids.hi[best_axis] - lo;
       auto it = std::partition(ids.begin() + begin, ids.begin() + end, [&](uint32_t id) {
-        return bucket_index(lights[id].bounds.center()[best_axis], lo, ext, kBuckets) <= best_bucket;
+        return bucket_index(centre(id)[best_axis], lo, ext, buckets) <= best_bucket;
       });
       mid = size_t(it - ids.begin());
       split = mid > begin && mid < end;
@@ -263,24 +296,25 @@ uint32_t LightBVH::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t
   if (!split) {
     mid = begin + (end - begin) / 2;
     std::nth_element(ids.begin() + begin, ids.begin() + mid, ids.begin() + end, [&](uint32_t a, uint32_t b) {
-      return lights[a].bounds.center()[widest] < lights[b].bounds.center()[widest];
+      return centre(a)[widest] < centre(b)[widest];
     });
   }
-  const uint32_t left = build_binary(ids, begin, mid, lights, depth + 1, out);
-  const uint32_t right = build_binary(ids, mid, end, lights, depth + 1, out);
-  out[node].left = left, out[node].right = right;
-  out[node].bounds = union_bounds(out[left].bounds, out[right].bounds);
+  const uint32_t left = build_binary(ids, begin, mid, depth + 1);
+  const uint32_t right = build_binary(ids, mid, end, depth + 1);
+  binary[node].left = left, binary[node].right = right;
+  binary[node].bounds = union_bounds(binary[left].bounds, binary[right].bounds);
   return node;
 }
 
 // One 4-wide node from binary node b: its two children, then the interior
 // child with the largest box opened in its place while there is room
 // (the usual BVH2 -> BVH4 collapse). A lone light makes a root of one lane.
-uint32_t LightBVH::collapse(const std::vector<BinaryNode>& binary, uint32_t b, uint32_t parent, int parent_lane) {
-  const uint32_t node = uint32_t(nodes_.size());
-  nodes_.emplace_back();
-  nodes_[node].parent = parent;
-  nodes_[node].parent_lane = uint8_t(parent_lane);
+uint32_t LightBVH::Builder::collapse(uint32_t b, uint32_t parent, int parent_lane) {
+  std::vector<Node>& nodes = bvh.nodes_;
+  const uint32_t node = uint32_t(nodes.size());
+  nodes.emplace_back();
+  nodes[node].parent = parent;
+  nodes[node].parent_lane = uint8_t(parent_lane);
   uint32_t lanes[4] = {b};
   int count = 1;
   if (!binary[b].leaf) lanes[0] = binary[b].left, lanes[1] = binary[b].right, count = 2;
@@ -289,7 +323,7 @@ uint32_t LightBVH::collapse(const std::vector<BinaryNode>& binary, uint32_t b, u
     float best = -1.0f;
     for (int k = 0; k < count; ++k) {
       const BinaryNode& c = binary[lanes[k]];
-      if (!c.leaf && c.bounds.bounds.half_area() > best) best = c.bounds.bounds.half_area(), open = k;
+      if (!c.leaf && c.bounds.lb.bounds.half_area() > best) best = c.bounds.lb.bounds.half_area(), open = k;
     }
     if (open < 0) break;
     const BinaryNode& c = binary[lanes[open]];
@@ -298,14 +332,14 @@ uint32_t LightBVH::collapse(const std::vector<BinaryNode>& binary, uint32_t b, u
   }
   for (int k = 0; k < count; ++k) {
     const BinaryNode& c = binary[lanes[k]];
-    nodes_[node].ib.set(k, ImportanceBounds(c.bounds));
+    nodes[node].ib.set(k, ImportanceBounds(c.bounds.lb));
     if (c.leaf) {
-      nodes_[node].child[k] = c.left;
-      nodes_[node].leaf_mask |= uint8_t(1u << k);
-      place_[c.left] = node * 4 + uint32_t(k);
+      nodes[node].child[k] = c.left;
+      nodes[node].leaf_mask |= uint8_t(1u << k);
+      bvh.place_[c.left] = node * 4 + uint32_t(k);
     } else {
-      const uint32_t child = collapse(binary, lanes[k], node, k);
-      nodes_[node].child[k] = child;
+      const uint32_t child = collapse(lanes[k], node, k);
+      nodes[node].child[k] = child;
     }
   }
   return node;

@@ -25,8 +25,6 @@ struct LightBounds {
   bool two_sided = false;    // emits on both sides of its normals
 };
 
-LightBounds union_bounds(const LightBounds& a, const LightBounds& b);
-
 // What importance() needs of a LightBounds, precomputed once per node: the
 // box's centre and bounding sphere, the cone's sine. Light sampling
 // evaluates two of these per tree level, for every sample and for every MIS
@@ -88,15 +86,7 @@ class LightBVH {
     uint8_t parent_lane = 0;   // this node's lane in its parent
     uint8_t leaf_mask = 0;     // bit k: lane k is a light
   };
-  // The binary tree the SAOH builds, before collapsing.
-  struct BinaryNode {
-    LightBounds bounds;
-    uint32_t left = 0, right = 0;  // children; a leaf's light id in `left`
-    bool leaf = false;
-  };
-  static uint32_t build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end,
-                               const std::vector<LightBounds>& lights, int depth, std::vector<BinaryNode>& out);
-  uint32_t collapse(const std::vector<BinaryNode>& binary, uint32_t b, uint32_t parent, int parent_lane);
+  struct Builder;  // the binary SAOH tree and its collapse (light_bvh.cpp)
   std::vector<Node> nodes_;
   // Per light: node * 4 + lane where it sits; ~0 for lights not in the tree.
   std::vector<uint32_t> place_;
