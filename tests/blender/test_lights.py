@@ -107,3 +107,32 @@ def test_light_shape_matches_cycles(kind):
     assert np.all(c["mean_rel_diff"] < 0.02), f"{kind}: mean {c['mean_test']} vs Cycles {c['mean_ref']}"
     assert c["rel_rmse"] < 0.05, c
     assert c["worst_block"] < 0.15, c
+
+
+def test_portal_area_light_only_guides_the_world():
+    """An area light marked as a Portal (Cycles' light settings) emits nothing in
+    Cycles: it only guides the sampling of the world behind it. Tessera rendered
+    it as an emitting area light (3x too bright here)."""
+    from scenes import set_world
+    scene = floor_under_light('AREA', energy=200.0, shape='SQUARE', size=1.0)
+    set_world(scene, color=(0.5, 0.6, 0.7), strength=0.5)
+    light = next(o for o in scene.objects if o.type == 'LIGHT')
+    light.data.cycles.is_portal = True
+    ours = render(scene, 'TESSERA', samples=64, bounces=0)
+    ref = render(scene, 'CYCLES', samples=64, bounces=0)
+    c = compare(ours, ref)
+    print({k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(c["mean_rel_diff"] < 0.02), f"mean {c['mean_test']} vs Cycles {c['mean_ref']}"
+    assert c["rel_rmse"] < 0.05, c
+
+
+def test_light_without_shadows_is_named():
+    """Cast Shadow off (Cycles skips the light's shadow rays) is not modelled:
+    Tessera says so in a warning instead of rendering the shadows silently."""
+    from tessera import engine
+    scene = floor_under_light('POINT', energy=100.0, shadow_soft_size=0.2)
+    light = next(o for o in scene.objects if o.type == 'LIGHT')
+    light.data.use_shadow = False
+    render(scene, 'TESSERA', samples=4, bounces=0)
+    warnings = " ".join(engine.last_render_stats.get("warnings", []))
+    assert light.name in warnings and "Cast Shadow" in warnings, warnings

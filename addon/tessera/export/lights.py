@@ -95,6 +95,14 @@ def export_light(scene_core, obj, matrix_world, report):
         return
     direction = -z_axis / np.linalg.norm(z_axis)  # lights shine down their local -Z
     kind = light.type
+    cycles_settings = getattr(light, "cycles", None)
+    if kind == 'AREA' and getattr(cycles_settings, "is_portal", False):
+        # A portal emits nothing in Cycles (Light::has_contribution); it only
+        # guides the sampling of the world, which Tessera samples without it.
+        return
+    if not getattr(light, "use_shadow", True):
+        report.warn(obj.name, f"Light '{obj.name}' has Cast Shadow off, which Tessera does not model: it "
+                              f"casts shadows here, not in Cycles. Turn Cast Shadow on to get the same image.")
     normalize = bool(getattr(light, "normalize", True))  # Blender 4.x "Normalize"
     if getattr(light, "use_nodes", False):
         report.warn(obj.name, f"Light '{obj.name}' uses a node tree, which Tessera ignores; "
