@@ -27,6 +27,8 @@ struct SceneFeatures {
   // Alpha): shadow rays then pass such surfaces, attenuated (Cycles'
   // transparent shadows). Without any, shadow rays stay any-hit occlusion tests.
   bool transparent = false;
+  // Every feature modelled, whatever the scene has (RenderOptions::specialise off).
+  static SceneFeatures all() { return {true, true, true}; }
 };
 SceneFeatures scene_features(const Scene& scene);
 

@@ -51,6 +51,11 @@ struct RenderOptions {
   // Blender's pass alpha threshold: Depth, Normal and Diffuse Color are
   // those of the first surface at least this opaque (passes.h, FirstHit).
   float pass_alpha_threshold = 0.5f;
+  // Model only the features the scene has (integrator.h, SceneFeatures),
+  // decided once per render. false models all of them whatever the scene
+  // has: the same image, for scripts/bench_features.py to measure what the
+  // specialisation saves.
+  bool specialise = true;
   // Region of the full frame to render, in pixels from the bottom-left
   // (Blender's border render); x1 <= x0 means the whole frame.
   int region_x0 = 0, region_y0 = 0, region_x1 = 0, region_y1 = 0;

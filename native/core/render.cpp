@@ -11,7 +11,7 @@
 namespace tessera {
 
 RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
-    : scene_(scene), options_(options), filter_(options.filter_width), features_(scene_features(scene)) {
+    : scene_(scene), options_(options), filter_(options.filter_width), features_(options.specialise ? scene_features(scene) : SceneFeatures::all()) {
   const int w = scene.camera.width, h = scene.camera.height;
   x0_ = 0, y0_ = 0, x1_ = w, y1_ = h;
   if (options.region_x1 > options.region_x0 && options.region_y1 > options.region_y0) {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "core/integrator.h"
 #include "core/render.h"
 #include "core/scene.h"
 
@@ -204,11 +205,25 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("threads", &RenderOptions::threads)
       .def_readwrite("tile_size", &RenderOptions::tile_size)
       .def_readwrite("filter_width", &RenderOptions::filter_width)
+      .def_readwrite("specialise", &RenderOptions::specialise,
+                     "False: model every scene feature whether the scene has it or not (benchmarks)")
       .def_readwrite("passes", &RenderOptions::passes, "Data passes to write: a sum of PASSES values")
       .def_readwrite("region_x0", &RenderOptions::region_x0)
       .def_readwrite("region_y0", &RenderOptions::region_y0)
       .def_readwrite("region_x1", &RenderOptions::region_x1)
       .def_readwrite("region_y1", &RenderOptions::region_y1);
+
+  m.def(
+      "scene_features",
+      [](const Scene& s) {
+        const SceneFeatures f = scene_features(s);
+        py::dict d;
+        d["emits"] = f.emits;
+        d["hittable_emitters"] = f.hittable_emitters;
+        d["transparent"] = f.transparent;
+        return d;
+      },
+      py::arg("scene"), "What the integrator models for a committed scene (SceneFeatures).");
 
   py::class_<Scene, std::shared_ptr<Scene>>(m, "Scene")
       .def(py::init<>())
