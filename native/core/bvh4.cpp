@@ -19,6 +19,8 @@ struct Collapser {
   const vec3* verts;
   const BuildOptions& opt;
   Out out;
+
+  Collapser(const BVH& b, const vec3* v, const BuildOptions& o) : bin(b), verts(v), opt(o) {}
   // Per binary node: triangles below it, and whether the subtree, where it
   // becomes a child of a wide node, is stored as one leaf of packed blocks
   // instead of a node of its own (see plan()).
@@ -300,13 +302,13 @@ struct Bvh4Traits {
 }  // namespace
 
 BVH4 collapse_to_bvh4(const BVH& binary, const vec3* tri_verts, const BuildOptions& options) {
-  Collapser<4, BVH4Node, BVH4> c{binary, tri_verts, options, {}, {}, {}, {}};
+  Collapser<4, BVH4Node, BVH4> c(binary, tri_verts, options);
   c.run();
   return std::move(c.out);
 }
 
 BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts, const BuildOptions& options) {
-  Collapser<8, BVH8Node, BVH8> c{binary, tri_verts, options, {}, {}, {}, {}};
+  Collapser<8, BVH8Node, BVH8> c(binary, tri_verts, options);
   c.run();
   return std::move(c.out);
 }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "bvh8.h"
 #include "triangle.h"
@@ -21,9 +22,22 @@
 namespace tessera {
 namespace {
 
+// x (1 + 2 gamma(3)), two ulps further from zero (zero, inf and NaN stay).
+inline float widen_up(float x) {
+  const float w = x * (1.0f + 2.0f * gamma(3));
+  uint32_t bits;
+  std::memcpy(&bits, &w, 4);
+  const uint32_t mag = bits & 0x7FFFFFFFu;
+  if (mag == 0 || mag >= 0x7F800000u) return w;
+  bits = mag >= 0x7F7FFFFEu ? (bits & 0x80000000u) | 0x7F800000u : bits + 2;
+  float r;
+  std::memcpy(&r, &bits, 4);
+  return r;
+}
+
 struct Ray8 {
-  __m256 org_near[3], org_far[3], inv[3];
-  __m256 tmax8;
+  __m256 org_near[3], org_far[3], inv[3], inv_far[3];
+  __m256 tmax8_far;  // tmax widened as the far planes
   __m128 tmax4;
   int near_lo[3];
   TriRay4 tri;
@@ -35,6 +49,7 @@ struct Ray8 {
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       float inv_i = 1.0f / di;
       inv[i] = _mm256_set1_ps(inv_i);
+      inv_far[i] = _mm256_set1_ps(widen_up(inv_i));
       near_lo[i] = int(!(inv_i >= 0.0f));
       // delta >= 0; near origin o + delta (inv >= 0) or o - delta, far the other.
       const float delta = parallel_axis_delta(origin[i], d[i]);
@@ -45,24 +60,41 @@ struct Ray8 {
     set_tmax(t_max);
   }
   void set_tmax(float t) {
-    tmax8 = _mm256_set1_ps(t);
+    tmax8_far = _mm256_set1_ps(widen_up(t));
     tmax4 = _mm_set1_ps(t);
   }
 };
 
-// Slab test against the eight child boxes: intersect_box's arithmetic per lane.
+// Slab test against the eight child boxes: intersect_box's arithmetic on the
+// near planes, at least as wide on the far planes, with a short dependency
+// chain (a node visit is a chain of dependent loads and this arithmetic):
+// - the far planes' widening is folded into their inverse direction and into
+//   tmax (widen_up): |round((b - o) inv_far)| is at least intersect_box's
+//   round(round((b - o) inv) (1 + 2 gamma(3))), as every rounding is
+//   monotonic and costs at most one ulp, and inv_far is two ulps beyond
+//   inv (1 + 2 gamma(3)); no multiply after the min;
+// - max, min and compare run on the floats' bit patterns as signed integers
+//   (1 cycle instead of 4): that order is float order on non-negative floats
+//   and puts every negative float below +0. tnear, maxed with +0, is the
+//   float max exactly (the near-first order and the pop cull are unchanged);
+//   tfar is negative exactly when some far distance or tmax is negative, and
+//   any negative tfar culls, as tnear >= +0. A far plane at exactly -0 now
+//   culls (the float compare accepted +0 <= -0): that box holds no point at
+//   t > 0 in that slab, and hits need t > 0.
 inline int intersect_node8(const BVH8Node& n, const Ray8& r, __m256& tnear) {
   const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
   const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
-  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv[0]);
+  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
   const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
-  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv[1]);
+  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
   const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
-  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv[2]);
-  tnear = _mm256_max_ps(_mm256_max_ps(tnx, tny), _mm256_max_ps(tnz, _mm256_setzero_ps()));
-  const __m256 tfar = _mm256_mul_ps(_mm256_min_ps(_mm256_min_ps(tfx, tfy), _mm256_min_ps(tfz, r.tmax8)),
-                                    _mm256_set1_ps(1.0f + 2.0f * gamma(3)));
-  return _mm256_movemask_ps(_mm256_cmp_ps(tnear, tfar, _CMP_LE_OQ));
+  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
+  const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
+  const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
+  const __m256i near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));
+  const __m256i far = _mm256_min_epi32(_mm256_min_epi32(ifx, ify), _mm256_min_epi32(ifz, _mm256_castps_si256(r.tmax8_far)));
+  tnear = _mm256_castsi256_ps(near);
+  return ~_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(near, far))) & 0xFF;
 }
 
 // BVH8 for wide_intersect / wide_occluded.
@@ -90,9 +122,14 @@ struct Bvh8Traits {
 
 }  // namespace
 
+#ifdef TESSERA_BVH_COUNTERS
+WideCounters g_wide_counters;
+#endif
+
 template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
   if (bvh.empty()) return false;
+  WC(rays);
   Ray8 ray(o, d, tmax);
   return wide_intersect<Bvh8Traits, kOrdered>(bvh.base(), ray, tmax, hit);
 }
@@ -102,6 +139,7 @@ template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, 
 
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
   if (bvh.empty()) return false;
+  WC(rays);
   Ray8 ray(o, d, tmax);
   return wide_occluded<Bvh8Traits>(bvh.base(), ray);
 }

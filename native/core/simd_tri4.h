@@ -12,6 +12,16 @@
 #include "triangle.h"
 
 namespace tessera {
+#ifdef TESSERA_BVH_COUNTERS
+struct WideCounters { unsigned long long rays, nodes, hits_children, leaves, blocks, sign_pass, t_pass; };
+extern WideCounters g_wide_counters;
+#define WC(x) (++g_wide_counters.x)
+#define WCN(x, n) (g_wide_counters.x += (n))
+#else
+#define WC(x) ((void)0)
+#define WCN(x, n) ((void)0)
+#endif
+
 namespace {
 
 // Per-ray constants of the triangle test (shear to +z), broadcast.
@@ -82,6 +92,7 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
   const __m128 det = _mm_add_ps(_mm_add_ps(u, v), w);
   valid = _mm_and_ps(valid, _mm_cmpneq_ps(det, zero));
   if (_mm_movemask_ps(valid) == 0) return 0;
+  WC(sign_pass);
   const __m128 az = _mm_mul_ps(r.sz, az0), bz = _mm_mul_ps(r.sz, bz0), cz = _mm_mul_ps(r.sz, cz0);
   const __m128 t_scaled = _mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz));
   const __m128 tmd = _mm_mul_ps(tmax, det);
@@ -91,6 +102,7 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
   const __m128 fail = _mm_or_ps(_mm_and_ps(det_neg, fail_neg), _mm_andnot_ps(det_neg, fail_pos));
   valid = _mm_andnot_ps(fail, valid);
   if (_mm_movemask_ps(valid) == 0) return 0;
+  WC(t_pass);
   const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.0f), det);
   const __m128 t = _mm_mul_ps(t_scaled, inv_det);
   // The conservative t error bound of triangle_t_error, lane by lane.

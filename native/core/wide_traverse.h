@@ -42,12 +42,14 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = wide_node<typename Traits::Node>(base, ref);
+      WC(nodes);
       // The child references sit apart from the boxes (the BVH8's last
       // line): ask for them now, next to the box loads, instead of after the
       // test has picked a child, which serialises two misses per level.
       _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       alignas(32) float dist[kWidth];
       int mask = Traits::test(n, ray, dist);
+      WCN(hits_children, __builtin_popcount(mask));
       if (mask != 0) {
         const int first = __builtin_ctz(mask);
         mask &= mask - 1;
@@ -86,8 +88,10 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
       }
     } else {
       const Tri4* tris = wide_leaf(base, ref);
+      WC(leaves);
       const uint32_t blocks = bvh4_leaf_blocks(ref);
       for (uint32_t b = 0; b < blocks; ++b) {
+        WC(blocks);
         __m128 t, u, v;
         int mask = intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v);
         if (mask == 0) continue;
@@ -128,9 +132,11 @@ bool wide_occluded(const char* base, typename Traits::Ray& ray) {
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = wide_node<typename Traits::Node>(base, ref);
+      WC(nodes);
       _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       alignas(32) float dist[Traits::kWidth];
       int mask = Traits::test(n, ray, dist);
+      WCN(hits_children, __builtin_popcount(mask));
       if (mask != 0) {
         const int first = __builtin_ctz(mask);
         for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
@@ -139,8 +145,10 @@ bool wide_occluded(const char* base, typename Traits::Ray& ray) {
       }
     } else {
       const Tri4* tris = wide_leaf(base, ref);
+      WC(leaves);
       const uint32_t blocks = bvh4_leaf_blocks(ref);
       for (uint32_t b = 0; b < blocks; ++b) {
+        WC(blocks);
         __m128 t, u, v;
         if (intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v)) return true;
       }

@@ -456,6 +456,7 @@ void trace_only(const Config& cfg) {
         }));
       std::printf("%s %s %s %.3f Mrays/s\n", basename_of(path).c_str(), rays.kind.c_str(), cfg.engine.c_str(),
                   rays.size() / median(st) * 1e-6);
+
       std::fflush(stdout);
     }
     es.release();
