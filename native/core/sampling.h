@@ -56,7 +56,8 @@ inline float spherical_triangle_area(const vec3& a, const vec3& b, const vec3& c
   const glm::dvec3 da(a), db(b), dc(c);
   const double num = std::abs(glm::dot(da, glm::cross(db, dc)));
   const double den = 1.0 + glm::dot(da, db) + glm::dot(db, dc) + glm::dot(dc, da);
-  return float(2.0 * std::atan2(num, den));
+  // num and den are exact enough in float now; float atan2 is the cheaper one.
+  return 2.0f * std::atan2(float(num), float(den));
 }
 
 // Direction uniformly distributed in solid angle over the spherical triangle

@@ -5,21 +5,17 @@
 
 namespace tessera {
 
+float kByteToLinear[2][256];
+
 namespace {
-
-// Linear value of each byte: sRGB's EOTF (IEC 61966-2-1) and k / 255.
-struct ByteTables {
-  float srgb[256], linear[256];
-  ByteTables() {
-    for (int k = 0; k < 256; ++k) {
-      const double c = k / 255.0;
-      srgb[k] = float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
-      linear[k] = float(c);
-    }
+const bool kByteTablesFilled = [] {
+  for (int k = 0; k < 256; ++k) {
+    const double c = k / 255.0;
+    kByteToLinear[0][k] = float(c);
+    kByteToLinear[1][k] = float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
   }
-};
-const ByteTables kByteTables;
-
+  return true;
+}();
 }  // namespace
 
 void Texture::set_bytes(const float* rgba, int w, int h, bool is_srgb) {
@@ -52,12 +48,6 @@ vec4 Texture::average() const {
   return vec4(sum / double(n));
 }
 
-vec4 Texture::texel_at(size_t i) const {
-  if (bytes.empty()) return texels[i];
-  const uint32_t b = bytes[i];
-  const float* t = srgb ? kByteTables.srgb : kByteTables.linear;
-  return vec4(t[b & 0xff], t[(b >> 8) & 0xff], t[(b >> 16) & 0xff], kByteTables.linear[b >> 24]);
-}
 
 vec4 Texture::texel(int x, int y) const {
   switch (extension) {

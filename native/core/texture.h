@@ -33,4 +33,15 @@ struct Texture {
   vec4 texel_at(size_t i) const;
 };
 
+// Linear value of each byte: [0] k / 255, [1] sRGB's EOTF (IEC 61966-2-1);
+// filled when the module loads (texture.cpp).
+extern float kByteToLinear[2][256];
+
+inline vec4 Texture::texel_at(size_t i) const {
+  if (bytes.empty()) return texels[i];
+  const uint32_t b = bytes[i];
+  const float* t = kByteToLinear[srgb ? 1 : 0];
+  return vec4(t[b & 0xff], t[(b >> 8) & 0xff], t[(b >> 16) & 0xff], kByteToLinear[0][b >> 24]);
+}
+
 }  // namespace tessera
