@@ -139,7 +139,12 @@ bool wide_occluded(const char* base, typename Traits::Ray& ray) {
       WCN(hits_children, __builtin_popcount(mask));
       if (mask != 0) {
         const int first = __builtin_ctz(mask);
-        for (int m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = n.child[__builtin_ctz(m)];
+        for (int m = mask & (mask - 1); m; m &= m - 1) {
+          const uint32_t c = n.child[__builtin_ctz(m)];
+          // Any-hit visits every pushed node unless it stops: fetch them now.
+          if (!bvh4_is_leaf(c)) Traits::prefetch(base, c);
+          stack[sp++] = c;
+        }
         ref = n.child[first];
         continue;
       }
