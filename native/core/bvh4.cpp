@@ -239,7 +239,9 @@ struct Collapser {
 // Per-ray constants for the box and triangle tests.
 struct Ray4 {
   __m128 org_near[3], org_far[3], inv[3];
-  __m128 tmax;
+  __m128 tmax;      // for the triangle test
+  __m128 tmax_far;  // tmax widened as the far planes
+  __m128 inv_far[3];
   int near_lo[3];  // box row holding the near plane per axis (0: lo, 1: hi)
   TriRay4 tri;
 
@@ -249,6 +251,7 @@ struct Ray4 {
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       float inv_i = 1.0f / di;
       inv[i] = _mm_set1_ps(inv_i);
+      inv_far[i] = _mm_set1_ps(widen_far(inv_i));
       near_lo[i] = int(!(inv_i >= 0.0f));
       // Separate origins for the lo / hi planes (see the two-origin intersect_box in aabb.h):
       // near o + delta (inv >= 0) or o - delta, far the other; no branch on the sign.
@@ -257,25 +260,31 @@ struct Ray4 {
       org_near[i] = _mm_set1_ps(origin[i] + signed_delta);
       org_far[i] = _mm_set1_ps(origin[i] - signed_delta);
     }
-    tmax = _mm_set1_ps(t_max);
+    set_tmax(t_max);
+  }
+  void set_tmax(float t) {
+    tmax = _mm_set1_ps(t);
+    tmax_far = _mm_set1_ps(widen_far(t));
   }
 };
 
-const __m128 kWiden = _mm_set1_ps(1.0f + 2.0f * gamma(3));
-
-// Slab test of the ray against the four child boxes: same arithmetic as
-// intersect_box in aabb.h. Returns the hit mask, entry distances in tnear.
+// Slab test of the ray against the four child boxes: intersect_box's
+// arithmetic on the near planes, at least as wide on the far planes (the
+// widening folded into inv_far and tmax_far, as in the BVH8's test; see
+// bvh8_avx2.cpp), the final compare on the bit patterns as signed integers
+// (tnear >= +0, so a negative tfar culls; SSE2 has no integer max/min).
+// Returns the hit mask, entry distances in tnear.
 inline int intersect_node(const BVH4Node& n, const Ray4& r, __m128& tnear) {
   const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
   const __m128 tnx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
-  const __m128 tfx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv[0]);
+  const __m128 tfx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
   const __m128 tny = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
-  const __m128 tfy = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv[1]);
+  const __m128 tfy = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
   const __m128 tnz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
-  const __m128 tfz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv[2]);
+  const __m128 tfz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
   tnear = _mm_max_ps(_mm_max_ps(tnx, tny), _mm_max_ps(tnz, _mm_setzero_ps()));
-  const __m128 tfar = _mm_mul_ps(_mm_min_ps(_mm_min_ps(tfx, tfy), _mm_min_ps(tfz, r.tmax)), kWiden);
-  return _mm_movemask_ps(_mm_cmple_ps(tnear, tfar));
+  const __m128 tfar = _mm_min_ps(_mm_min_ps(tfx, tfy), _mm_min_ps(tfz, r.tmax_far));
+  return ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_castps_si128(tnear), _mm_castps_si128(tfar)))) & 0xF;
 }
 
 // BVH4 for wide_intersect / wide_occluded.
@@ -291,7 +300,7 @@ struct Bvh4Traits {
     return mask;
   }
   static __m128 tri_tmax(const Ray& r) { return r.tmax; }
-  static void set_tmax(Ray& r, float t) { r.tmax = _mm_set1_ps(t); }
+  static void set_tmax(Ray& r, float t) { r.set_tmax(t); }
   static void prefetch(const char* base, uint32_t ref) {
     const char* p = base + size_t(ref) * kNodeUnit;
     _mm_prefetch(p, _MM_HINT_T0);

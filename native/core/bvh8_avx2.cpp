@@ -22,19 +22,6 @@
 namespace tessera {
 namespace {
 
-// x (1 + 2 gamma(3)), two ulps further from zero (zero, inf and NaN stay).
-inline float widen_up(float x) {
-  const float w = x * (1.0f + 2.0f * gamma(3));
-  uint32_t bits;
-  std::memcpy(&bits, &w, 4);
-  const uint32_t mag = bits & 0x7FFFFFFFu;
-  if (mag == 0 || mag >= 0x7F800000u) return w;
-  bits = mag >= 0x7F7FFFFEu ? (bits & 0x80000000u) | 0x7F800000u : bits + 2;
-  float r;
-  std::memcpy(&r, &bits, 4);
-  return r;
-}
-
 struct Ray8 {
   __m256 org_near[3], org_far[3], inv[3], inv_far[3];
   __m256 tmax8_far;  // tmax widened as the far planes
@@ -49,7 +36,7 @@ struct Ray8 {
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       float inv_i = 1.0f / di;
       inv[i] = _mm256_set1_ps(inv_i);
-      inv_far[i] = _mm256_set1_ps(widen_up(inv_i));
+      inv_far[i] = _mm256_set1_ps(widen_far(inv_i));
       near_lo[i] = int(!(inv_i >= 0.0f));
       // delta >= 0; near origin o + delta (inv >= 0) or o - delta, far the other.
       const float delta = parallel_axis_delta(origin[i], d[i]);
@@ -60,7 +47,7 @@ struct Ray8 {
     set_tmax(t_max);
   }
   void set_tmax(float t) {
-    tmax8_far = _mm256_set1_ps(widen_up(t));
+    tmax8_far = _mm256_set1_ps(widen_far(t));
     tmax4 = _mm_set1_ps(t);
   }
 };
@@ -69,7 +56,7 @@ struct Ray8 {
 // near planes, at least as wide on the far planes, with a short dependency
 // chain (a node visit is a chain of dependent loads and this arithmetic):
 // - the far planes' widening is folded into their inverse direction and into
-//   tmax (widen_up): |round((b - o) inv_far)| is at least intersect_box's
+//   tmax (widen_far in aabb.h): |round((b - o) inv_far)| is at least intersect_box's
 //   round(round((b - o) inv) (1 + 2 gamma(3))), as every rounding is
 //   monotonic and costs at most one ulp, and inv_far is two ulps beyond
 //   inv (1 + 2 gamma(3)); no multiply after the min;
