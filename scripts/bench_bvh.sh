@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds bench_bvh (Tessera vs Embree; needs libembree-dev) into build-bench/,
+# Builds bench_bvh (Tessera vs Embree; needs libembree-dev) into build-bench/
+# (or $BENCH_BUILD_DIR),
 # runs it on the shared meshes and writes docs/BVH_BENCHMARK.md.
 # Usage: [REPEAT=n] scripts/bench_bvh.sh [extra bench_bvh options, e.g. --runs 3 --res 512]
 # The benchmark runs REPEAT times (default 3, separate processes); every
@@ -8,9 +9,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHES_DIR=${TESSERA_MESHES:-../shared/meshes}
-cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DTESSERA_TESTS=OFF \
+BUILD=${BENCH_BUILD_DIR:-build-bench}
+cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DTESSERA_TESTS=OFF \
   -DPYTHON_EXECUTABLE="${TESSERA_PYTHON:-/usr/bin/python3}" >/dev/null
-cmake --build build-bench -j"$(nproc)" --target bench_bvh >/dev/null
+cmake --build "$BUILD" -j"$(nproc)" --target bench_bvh >/dev/null
 MESHES=("$MESHES_DIR"/stanford-bunny.obj "$MESHES_DIR"/nefertiti.obj "$MESHES_DIR"/ogre.obj "$MESHES_DIR"/igea.ply)
 ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --clock cpu --builder-threads 1 --builder-res 512 --builder-meshes stanford-bunny.obj,igea.ply "$@")
 REPEAT=${REPEAT:-3}
@@ -21,7 +23,7 @@ NOTES=$(mktemp)
 if [ -f "$OUT" ] && grep -q '^<!-- notes -->' "$OUT"; then sed -n '/^<!-- notes -->/,$p' "$OUT" >"$NOTES"; fi
 RUNS_DIR=$(mktemp -d)
 for r in $(seq "$REPEAT"); do
-  build-bench/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$RUNS_DIR/$r.md"
+  "$BUILD"/scripts/bench_native/bench_bvh "${ARGS[@]}" "${MESHES[@]}" >"$RUNS_DIR/$r.md"
 done
 # Cell-wise median of the runs' tables (same rows in the same order); text and
 # agreement cells from the first run.
@@ -53,7 +55,7 @@ rm -rf "$RUNS_DIR"
   echo "which ran $REPEAT times (separate processes; every figure below is the median over the runs):"
   echo
   echo '```'
-  echo "build-bench/scripts/bench_native/bench_bvh ${ARGS[*]} ${MESHES[*]}"
+  echo "$BUILD/scripts/bench_native/bench_bvh ${ARGS[*]} ${MESHES[*]}"
   echo '```'
   echo
   echo "Machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, $(. /etc/os-release; echo "$PRETTY_NAME"), $(g++ --version | head -1)."
