@@ -1,6 +1,6 @@
-"""Tessera's panels in Render Properties, and Blender's own panels (output,
-dimensions, colour management, camera, light, material, world) enabled for
-the engine."""
+"""Tessera's panels in Render Properties and the Light tab, and Blender's own
+panels (output, dimensions, colour management, camera, material, world)
+enabled for the engine."""
 
 import bpy
 
@@ -108,7 +108,91 @@ class TESSERA_PT_passes_data(bpy.types.Panel):
         col.prop(view_layer.tessera, "denoising_store_passes")
 
 
-classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance, TESSERA_PT_passes_data)
+class TesseraLightPanel:
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "data"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.light is not None and context.engine in cls.COMPAT_ENGINES
+
+
+def _has(light, name):
+    """Whether this Blender's Light has the property (exposure, normalize,
+    soft falloff and temperature are 4.x)."""
+    return name in light.bl_rna.properties
+
+
+class TESSERA_LIGHT_PT_light(TesseraLightPanel, bpy.types.Panel):
+    """The one Light panel, laid out as Cycles' (type, colour, power, shape),
+    with only what Tessera reads (export/lights.py): no EEVEE factors, shadow
+    or distance settings, no Cycles spread, portal or per-light bounces."""
+    bl_label = "Light"
+
+    def draw(self, context):
+        layout = self.layout
+        light = context.light
+        if self.bl_space_type == 'PROPERTIES':
+            layout.row().prop(light, "type", expand=True)
+            layout.use_property_split = True
+        else:
+            layout.use_property_split = True
+            layout.row().prop(light, "type")
+        col = layout.column()
+        if _has(light, "use_temperature"):
+            row = col.row(align=True, heading="Temperature")
+            row.prop(light, "use_temperature", text="")
+            sub = row.row(align=True)
+            sub.active = light.use_temperature
+            sub.prop(light, "temperature", text="")
+            col.prop(light, "color", text="Tint" if light.use_temperature else "Color")
+        else:
+            col.prop(light, "color")
+        col.separator()
+        col.prop(light, "energy")
+        if _has(light, "exposure"):
+            col.prop(light, "exposure")
+        if _has(light, "normalize"):
+            col.prop(light, "normalize")
+        col.separator()
+        if light.type in {'POINT', 'SPOT'}:
+            col.prop(light, "shadow_soft_size", text="Radius")
+            if _has(light, "use_soft_falloff"):
+                col.prop(light, "use_soft_falloff")
+        elif light.type == 'SUN':
+            col.prop(light, "angle")
+        elif light.type == 'AREA':
+            col.prop(light, "shape", text="Shape")
+            sub = col.column(align=True)
+            if light.shape in {'SQUARE', 'DISK'}:
+                sub.prop(light, "size")
+            else:
+                sub.prop(light, "size", text="Size X")
+                sub.prop(light, "size_y", text="Y")
+
+
+class TESSERA_LIGHT_PT_beam_shape(TesseraLightPanel, bpy.types.Panel):
+    bl_label = "Beam Shape"
+    bl_parent_id = "TESSERA_LIGHT_PT_light"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.light.type == 'SPOT'
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        light = context.light
+        col = layout.column()
+        col.prop(light, "spot_size", text="Spot Size")
+        col.prop(light, "spot_blend", text="Blend", slider=True)
+        col.prop(light, "show_cone")
+
+
+classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance, TESSERA_PT_passes_data,
+           TESSERA_LIGHT_PT_light, TESSERA_LIGHT_PT_beam_shape)
 
 # Blender's own panels that apply to any engine which renders the usual data.
 _BLENDER_PANELS = (
@@ -118,8 +202,9 @@ _BLENDER_PANELS = (
     "RENDER_PT_stamp_note", "RENDER_PT_stamp_burn", "RENDER_PT_time_stretching", "RENDER_PT_format_presets",
     "DATA_PT_context_camera", "DATA_PT_lens", "DATA_PT_camera", "DATA_PT_camera_display", "DATA_PT_camera_safe_areas",
     "DATA_PT_camera_background_image", "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture", "DATA_PT_custom_props_camera",
-    "DATA_PT_context_light", "DATA_PT_light", "DATA_PT_area", "DATA_PT_spot", "DATA_PT_EEVEE_light",
-    "DATA_PT_custom_props_light",
+    # Lights: Tessera's own panels above instead of Blender's DATA_PT_light (the type row only),
+    # DATA_PT_area/DATA_PT_spot and EEVEE's panels (whose factors and shadows Tessera ignores).
+    "DATA_PT_context_light", "DATA_PT_light_animation", "DATA_PT_custom_props_light",
     "MATERIAL_PT_preview", "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface",
     "MATERIAL_PT_custom_props", "MATERIAL_PT_viewport",
     "WORLD_PT_context_world", "EEVEE_WORLD_PT_surface", "WORLD_PT_custom_props", "WORLD_PT_viewport_display",
