@@ -5,7 +5,7 @@ downsampling, and the worst 8x8 block of the downsampled image.
 
     blender -b --factory-startup --python scripts/compare_cycles.py -- \
         [--size 160] [--samples 1024] [--samples-for bunny_glass=16384 ...] \
-        [--seeds 2] [--bounces 8] [--scenes NAME ...] [--out docs/compare] [--keep DIR]
+        [--seeds 2] [--bounces 8] [--scenes NAME ...] [--out docs/compare] [--keep DIR] [--report-only]
     BPY_VENV/bin/python scripts/compare_cycles.py [same arguments]     # the bpy module (4.2+)
 
 Each engine renders every scene --seeds times (seeds 0, 1, ...). The
@@ -51,6 +51,7 @@ ap.add_argument("--seeds", type=int, default=2, help="renders per engine and sce
 ap.add_argument("--bounces", type=int, default=8)
 ap.add_argument("--scenes", nargs="*", default=None)
 ap.add_argument("--out", default=os.path.join(HERE, "..", "docs", "compare"))
+ap.add_argument("--report-only", action="store_true", help="render nothing, rewrite OUT/README.md from the results files")
 ap.add_argument("--keep", default=None, help="also save every render as DIR/<version>/<scene>_<engine>_<seed>.npy")
 args = ap.parse_args(argv)
 per_scene = {}
@@ -106,7 +107,7 @@ def figures(c):
             "rel_rmse": float(c["rel_rmse"]), "worst_block": float(c["worst_block"])}
 
 
-names = args.scenes or sorted(f for f in os.listdir(SCENES) if f.endswith(".blend"))
+names = [] if args.report_only else (args.scenes or sorted(f for f in os.listdir(SCENES) if f.endswith(".blend")))
 names = [n if n.endswith(".blend") else n + ".blend" for n in names]
 results_path = os.path.join(args.out, f"results_{VERSION}.json")
 results = {}
@@ -175,6 +176,8 @@ lines = ["# Tessera against Cycles on the shared scenes", "",
          "noise floor: the same figures between seed 0 and seed 1 of one engine (T: Tessera, C: Cycles), and "
          "the cross-engine RMSE noise alone would give, sqrt(T^2 + C^2) / 2. A cross-engine figure well above "
          "its noise floor is bias.", ""]
+if os.path.exists(os.path.join(args.out, "NOTES.md")):
+    lines += ["What the figures mean per scene, what is noise and what is not: [NOTES.md](NOTES.md).", ""]
 versions = sorted((f[len("results_"):-len(".json")] for f in os.listdir(args.out)
                    if f.startswith("results_") and f.endswith(".json")),
                   key=lambda v: tuple(int(x) for x in v.split(".")))
@@ -182,11 +185,15 @@ for ver in versions:
     with open(os.path.join(args.out, f"results_{ver}.json")) as f:
         res = json.load(f)
     rows = [res[k] for k in sorted(res)]
-    commands = []
+    commands = []  # (command, scenes it made)
     for r in rows:
-        if r["command"] not in commands:
-            commands.append(r["command"])
-    w, h = rows[0]["size"] if rows else (0, 0)
+        for cmd, made in commands:
+            if cmd == r["command"]:
+                made.append(os.path.splitext(r["scene"])[0])
+                break
+        else:
+            commands.append((r["command"], [os.path.splitext(r["scene"])[0]]))
+    w = rows[0]["size"][0] if rows else 0
     lines += [f"## Blender {ver}", "",
               "| scene | spp x seeds | mean diff R / G / B | rel. RMSE (1/8) | worst block | "
               "noise: mean T / C | noise: RMSE T / C | RMSE from noise | noise: worst block T / C | finite | "
@@ -205,8 +212,11 @@ for ver in versions:
         lines.append(f"| {r['scene']} | {r['samples']} x {r['seeds']} | {d} | {pct(c['rel_rmse'], 2)} | "
                      f"{pct(c['worst_block'])} at {at[0]},{at[1]} ({100 * at[3]:+.0f}%) | {noise} | {r['finite']} | "
                      f"{r['seconds']['tessera']:.0f} s / {r['seconds']['cycles']:.0f} s |")
-    lines += ["", f"{w} x {h} px. Command{'s' if len(commands) > 1 else ''}:", "", "```sh"]
-    lines += [command_line(cmd).replace("{VERSION}", ver.rsplit(".", 1)[0] + ".x") for cmd in commands]
+    lines += ["", f"{w} px wide, each file's own aspect. Command{'s' if len(commands) > 1 else ''} "
+              "(the figures of each scene come from the last command that rendered it):", "", "```sh"]
+    for cmd, made in commands:
+        lines += [f"# made {', '.join(made)}",
+                  command_line(cmd).replace("{VERSION}", ver.rsplit(".", 1)[0] + ".x")]
     lines += ["```", ""]
 for ver in versions:
     with open(os.path.join(args.out, f"results_{ver}.json")) as f:
