@@ -207,6 +207,9 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         total = settings.samples
         session.start()
         shown = 0
+        # What the user saw during the render (last_render_stats; tests).
+        display_updates = progress_updates = 0
+        progress = 0.0
         while not session.wait(0.1):
             if self.cancel_requested():
                 session.cancel()
@@ -216,13 +219,18 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
             done = session.samples_done
             text, progress = live_status(session, total)
             self.update_progress(progress)
+            progress_updates += 1
             self.update_stats("", text)
             if done > shown:
                 self._write(layer, session)
                 self.update_result(result)
+                display_updates += 1
                 shown = done
         self._write(layer, session)
         self.end_result(result)
+        progress = 1.0  # finished (also when stopped early by a time limit or error target)
+        self.update_progress(progress)
+        progress_updates += 1
         rs = session.stats()
         rays_per_s = rs["rays"] / max(rs["seconds"], 1e-9)
         pixel_samples_per_s = rs["pixel_samples"] / max(rs["seconds"], 1e-9)
@@ -246,7 +254,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                                  pixel_samples=rs["pixel_samples"], samples_per_second=pixel_samples_per_s,
                                  mean_samples=mean_spp, estimated_error=rs["estimated_error"],
                                  stop_reason=rs["stop_reason"], active_pixels=rs["active_pixels"],
-                                 warnings=list(report.warnings))
+                                 warnings=list(report.warnings), display_updates=display_updates,
+                                 progress_updates=progress_updates, final_progress=progress)
 
     @staticmethod
     def _write(layer, session):

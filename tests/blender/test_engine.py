@@ -109,3 +109,19 @@ def test_material_preview_is_rendered_by_tessera(tmp_path):
     centre = px[h // 2 - 16:h // 2 + 16, w // 2 - 16:w // 2 + 16, :3].mean(axis=(0, 1))
     # The red sphere, lit: red dominates and is well above the dark world.
     assert centre[0] > 0.2 and centre[0] > 4 * centre[1] and centre[0] > 4 * centre[2], centre
+
+
+def test_the_display_fills_in_while_rendering():
+    """Progressive display: the image in Blender's render window is updated
+    (update_result) as passes of samples finish, not only at the end, and the
+    progress bar ends full."""
+    from tessera import engine
+    scene = small_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 320, 240
+    # One thread, 64 samples in passes: long enough for several 0.1 s polls.
+    render(scene, 'TESSERA', samples=64, bounces=8, threads=1)
+    stats = engine.last_render_stats
+    assert stats["samples"] == 64, stats
+    assert stats["display_updates"] > 1, stats
+    assert stats["progress_updates"] > stats["display_updates"] // 2, stats
+    assert stats["final_progress"] == 1.0, stats
