@@ -154,19 +154,94 @@ float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 cor
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
 
-// How sample() samples area light l from p, deciding for pdf_area() too: a
-// rectangle seen from in front at a solid angle of at least
-// kMinSphericalSampleArea uniformly in that solid angle (Urena et al. 2013,
-// as Cycles), in r; anything else (ellipses, far or tiny rectangles) by area.
-// Close to a large rectangle, area sampling's 1/d^2 weights were fireflies.
-bool rectangle_by_solid_angle(const Light& l, const vec3& p, SphericalRectangle* r) {
-  if (l.ellipse) return false;
-  const vec3 to_p = p - l.position;
-  if (!(glm::dot(to_p, l.direction) > 0.0f)) return false;  // behind: it receives nothing
-  const float d = glm::length(to_p) - glm::length(l.axis_u + l.axis_v);
-  if (d > 0.0f && l.area < kMinSphericalSampleArea * d * d) return false;
-  if (!r->init(p, l.position - l.axis_u - l.axis_v, 2.0f * l.axis_u, 2.0f * l.axis_v)) return false;
-  return r->solid_angle() >= kMinSphericalSampleArea;
+// Whether the point q of area light l's plane lies on the light.
+bool on_area_light(const Light& l, const vec3& q) {
+  const vec3 d = q - l.position;
+  const float a = glm::dot(d, l.axis_u) / glm::dot(l.axis_u, l.axis_u);
+  const float b = glm::dot(d, l.axis_v) / glm::dot(l.axis_v, l.axis_v);
+  return l.ellipse ? a * a + b * b <= 1.0f : (std::abs(a) <= 1.0f && std::abs(b) <= 1.0f);
+}
+
+// Cycles' soft-box Spread (area_light_spread_attenuation): the factor on
+// the radiance of area light l towards the direction w (unit, from the
+// shading point to the light), from the angle a between -w and the light's
+// normal. tan a from the cross product: 1 - cos^2 near the normal would
+// cost half the digits, which narrow spreads need.
+float spread_attenuation(const Light& l, const vec3& w) {
+  if (!std::isfinite(l.spread_tan)) return 1.0f;
+  const float cos_a = -glm::dot(w, l.direction);
+  if (!(cos_a > 0.0f)) return 0.0f;
+  const float tan_a = glm::length(glm::cross(w, l.direction)) / cos_a;
+  return std::max((l.spread_tan - tan_a) * l.spread_norm, 0.0f);
+}
+
+// The part of area light l that sample() samples from p, and how; pdf_area()
+// decides with the same function, so that the densities agree. Without
+// spread: the whole rectangle, uniformly in the solid angle it subtends
+// (Urena et al. 2013, as Cycles) when that is at least
+// kMinSphericalSampleArea, else by area (close to a large rectangle, area
+// sampling's 1/d^2 weights were fireflies), or the whole ellipse by area.
+// With spread, only the disk of radius h tan(half spread) about p's foot on
+// the light's plane (h: p's height above it) emits towards p, as Cycles'
+// area_light_spread_clamp_light uses: a rectangle is clipped to the disk's
+// bounding square (then sampled as above), an ellipse is replaced by the
+// disk when that is smaller (by area; points off the ellipse are no sample).
+struct AreaRegion {
+  enum Kind { Rectangle, Ellipse, SpreadDisk } kind = Rectangle;
+  vec3 centre{0.0f};         // of the rectangle, ellipse or disk
+  vec3 eu{0.0f}, ev{0.0f};   // its half-extent vectors (the disk: radius x an in-plane frame)
+  float area = 0.0f;
+  bool by_solid_angle = false;
+  SphericalRectangle rect;
+};
+
+// False when no part of l emits towards p (p behind it, in its plane, or
+// outside its spread).
+bool area_region(const Light& l, const vec3& p, AreaRegion* r) {
+  const float h = glm::dot(p - l.position, l.direction);
+  if (!(h > 0.0f)) return false;
+  r->kind = l.ellipse ? AreaRegion::Ellipse : AreaRegion::Rectangle;
+  r->centre = l.position;
+  r->eu = l.axis_u;
+  r->ev = l.axis_v;
+  r->area = l.area;
+  if (std::isfinite(l.spread_tan)) {
+    const float radius = h * l.spread_tan;
+    const vec3 foot = p - h * l.direction;
+    const float lu = glm::length(l.axis_u), lv = glm::length(l.axis_v);
+    if (!(lu > 0.0f && lv > 0.0f && radius > 0.0f)) return false;
+    const vec3 du = l.axis_u / lu, dv = l.axis_v / lv;
+    const float cu = glm::dot(foot - l.position, du), cv = glm::dot(foot - l.position, dv);
+    if (l.ellipse) {
+      if (std::abs(cu) >= lu + radius || std::abs(cv) >= lv + radius) return false;
+      const float disk_area = kPi * radius * radius;
+      if (disk_area < l.area) {
+        const Frame f(l.direction);
+        r->kind = AreaRegion::SpreadDisk;
+        r->centre = foot;
+        r->eu = radius * f.t;
+        r->ev = radius * f.b;
+        r->area = disk_area;
+      }
+    } else {
+      const float u0 = std::max(cu - radius, -lu), u1 = std::min(cu + radius, lu);
+      const float v0 = std::max(cv - radius, -lv), v1 = std::min(cv + radius, lv);
+      if (!(u0 < u1 && v0 < v1)) return false;
+      r->centre = l.position + (0.5f * (u0 + u1)) * du + (0.5f * (v0 + v1)) * dv;
+      r->eu = (0.5f * (u1 - u0)) * du;
+      r->ev = (0.5f * (v1 - v0)) * dv;
+      r->area = (u1 - u0) * (v1 - v0);
+    }
+  }
+  if (!(r->area > 0.0f)) return false;
+  r->by_solid_angle = false;
+  if (r->kind == AreaRegion::Rectangle) {
+    const float d = glm::length(p - r->centre) - glm::length(r->eu + r->ev);
+    if (!(d > 0.0f && r->area < kMinSphericalSampleArea * d * d) &&
+        r->rect.init(p, r->centre - r->eu - r->ev, 2.0f * r->eu, 2.0f * r->ev))
+      r->by_solid_angle = r->rect.solid_angle() >= kMinSphericalSampleArea;
+  }
+  return true;
 }
 
 float light_power(const Light& l, float scene_radius) {
@@ -417,14 +492,15 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       return true;
     }
     case LightType::Area: {
-      SphericalRectangle rect;
-      const bool by_solid_angle = rectangle_by_solid_angle(l, p, &rect);
+      AreaRegion r;
+      if (!area_region(l, p, &r)) return false;
       vec3 q;
-      if (by_solid_angle) {
-        q = rect.sample(u);
+      if (r.by_solid_angle) {
+        q = r.rect.sample(u);
       } else {
-        const vec2 s = l.ellipse ? sample_uniform_disk_concentric(u) : 2.0f * u - vec2(1.0f);
-        q = l.position + s.x * l.axis_u + s.y * l.axis_v;
+        const vec2 s = r.kind == AreaRegion::Rectangle ? 2.0f * u - vec2(1.0f) : sample_uniform_disk_concentric(u);
+        q = r.centre + s.x * r.eu + s.y * r.ev;
+        if (r.kind == AreaRegion::SpreadDisk && !on_area_light(l, q)) return false;
       }
       vec3 w = q - p;
       float dist2 = glm::dot(w, w);
@@ -433,8 +509,10 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       ls.wi = w / ls.dist;
       float cos_l = -glm::dot(ls.wi, l.direction);
       if (cos_l <= 0.0f) return false;  // area lights emit from their front only
-      ls.li = l.radiance;
-      ls.pdf = by_solid_angle ? pmf / rect.solid_angle() : pmf * dist2 / (cos_l * l.area);
+      const float atten = spread_attenuation(l, ls.wi);
+      if (!(atten > 0.0f)) return false;
+      ls.li = l.radiance * atten;
+      ls.pdf = r.by_solid_angle ? pmf / r.rect.solid_angle() : pmf * dist2 / (cos_l * r.area);
       return true;
     }
     default:
@@ -457,9 +535,13 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
 
 float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
   if (cos_l <= 0.0f) return 0.0f;
-  SphericalRectangle rect;
-  if (rectangle_by_solid_angle(lights_[light], p, &rect)) return selection_pmf(light, p, n) / rect.solid_angle();
-  return selection_pmf(light, p, n) * dist * dist / (cos_l * lights_[light].area);
+  // The region sample() samples from p. A point of the light outside it
+  // (possible with spread) has no emission towards p, so its density does
+  // not matter.
+  AreaRegion r;
+  if (!area_region(lights_[light], p, &r)) return 0.0f;
+  if (r.by_solid_angle) return selection_pmf(light, p, n) / r.rect.solid_angle();
+  return selection_pmf(light, p, n) * dist * dist / (cos_l * r.area);
 }
 
 float LightSampler::pdf_background(const vec3& wi) const {
@@ -488,15 +570,13 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
       if (denom >= 0.0f) continue;  // back side or parallel: area lights are one-sided
       float t = glm::dot(l.position - o, l.direction) / denom;
       if (!(t > 0.0f && t < tmax)) continue;
-      vec3 q = o + t * d - l.position;
-      float a = glm::dot(q, l.axis_u) / glm::dot(l.axis_u, l.axis_u);
-      float b = glm::dot(q, l.axis_v) / glm::dot(l.axis_v, l.axis_v);
-      bool inside = l.ellipse ? a * a + b * b <= 1.0f : (std::abs(a) <= 1.0f && std::abs(b) <= 1.0f);
-      if (!inside) continue;
+      if (!on_area_light(l, o + t * d)) continue;
+      const float atten = spread_attenuation(l, d);  // outside its spread: not seen
+      if (!(atten > 0.0f)) continue;
       tmax = t;
       best = int(i);
       *t_hit = t;
-      *le = l.radiance;
+      *le = l.radiance * atten;
       *pdf = pdf_area(i, p, n, t, -denom);
     } else if (l.sphere) {
       // Cycles 4.x's sphere light (point_light_intersect); a spot is only

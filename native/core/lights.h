@@ -40,6 +40,16 @@ struct Light {
   bool spot_scaled = false;
   glm::mat3 spot_to_local{1.0f};
   bool ellipse = false;     // area: disk/ellipse instead of square/rectangle
+  // area: Blender's Spread, as Cycles' soft box (kernel/light/area.h,
+  // area_light_spread_attenuation): radiance leaving at angle a to the
+  // normal is scaled by max((spread_tan - tan a) * spread_norm, 0), with
+  // spread_tan = tan(half spread) and spread_norm = 1 / (spread_tan - half
+  // spread), which keeps the light's power. spread_tan = inf: no spread
+  // (the full hemisphere, factor 1). Only the disk of radius h * spread_tan
+  // around the foot of a point at height h emits towards it, and sample()
+  // samples that part of the light only.
+  float spread_tan = kInf;
+  float spread_norm = 0.0f;
   vec3 radiance{0.0f};      // emitted radiance (area, sphere, sun disk) or intensity (radius 0)
   float area = 0.0f;        // area lights: surface area
 };

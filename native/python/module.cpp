@@ -385,7 +385,7 @@ PYBIND11_MODULE(_core, m) {
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
              std::vector<float> axis_u, std::vector<float> axis_v, float radius, float spot_cos, float spot_smooth,
              bool ellipse, std::vector<float> radiance, bool spot_cosine, bool sphere,
-             std::vector<float> spot_to_local) {
+             std::vector<float> spot_to_local, float spread_tan, float spread_norm) {
             Light l;
             if (type == "POINT") l.type = LightType::Point;
             else if (type == "SPOT") l.type = LightType::Spot;
@@ -410,13 +410,20 @@ PYBIND11_MODULE(_core, m) {
             l.ellipse = ellipse;
             l.radiance = to_vec3(radiance, "radiance");
             l.area = 4.0f * glm::length(l.axis_u) * glm::length(l.axis_v) * (ellipse ? kPi / 4.0f : 1.0f);
+            if (std::isfinite(spread_tan)) {  // area: Cycles' spread (export/lights.py, area_spread)
+              if (!(spread_tan > 0.0f && spread_norm > 0.0f && std::isfinite(spread_norm)))
+                throw std::invalid_argument("spread_tan and spread_norm must be positive and finite (or spread_tan inf: no spread)");
+              l.spread_tan = spread_tan;
+              l.spread_norm = spread_norm;
+            }
             s.lights.push_back(l);
           },
           py::arg("type"), py::arg("position"), py::arg("direction") = std::vector<float>{0, 0, -1},
           py::arg("axis_u") = std::vector<float>{1, 0, 0}, py::arg("axis_v") = std::vector<float>{0, 1, 0},
           py::arg("radius") = 0.0f, py::arg("spot_cos") = -1.0f, py::arg("spot_smooth") = 0.0f,
           py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1},
-          py::arg("spot_cosine") = true, py::arg("sphere") = false, py::arg("spot_to_local") = std::vector<float>{})
+          py::arg("spot_cosine") = true, py::arg("sphere") = false, py::arg("spot_to_local") = std::vector<float>{},
+          py::arg("spread_tan") = kInf, py::arg("spread_norm") = 0.0f)
       .def("set_world_color", [](Scene& s, std::vector<float> c) { s.background.set_color(to_vec3(c, "color")); })
       .def(
           "set_world_image",

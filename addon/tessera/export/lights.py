@@ -16,6 +16,14 @@ converts them (intern/cycles/scene/light.cpp and kernel/light/*.h):
 - area: 3.x radiance P / (4 A); 4.0+ P / (pi A), the physical value, and
   files older than 4.0 are versioned with energy *= pi / 4 (versioning_400,
   "Fix area light scaling"); unnormalised (4.x): P / pi.
+- area Spread s (Cycles' soft box, kernel/light/area.h,
+  area_light_spread_attenuation): radiance at angle a to the normal times
+  max((tan h - tan a) / (tan h - h), 0), h = s / 2, which keeps the power.
+  3.x writes it as (1 - tan(pi/2 - h) tan a) * 2 / (2 + (2 (pi/2 - h) - pi)
+  tan(pi/2 - h)), the same function, with s clamped to at least 1 degree and
+  no attenuation at exactly 180; 4.x takes any s > 0 (a Taylor expansion of
+  the normalisation below 0.05 rad, the same value) and s = 0 as a parallel
+  beam, which Tessera renders as a spread of 0.1 degree (see area_spread).
 - sun of half angle h: 4.x constant radiance E / (pi sin^2 h) over the
   cone, irradiance E; 3.x sampled a disk tan(h) one unit away and weighted
   each direction by its own pdf (eval_fac = pdf), irradiance
@@ -54,6 +62,27 @@ def area_radiance(power, area, normalize=True, cycles4=CYCLES_4):
     if not normalize:
         return power / math.pi
     return power / (math.pi * area) if cycles4 else power / (4.0 * area)
+
+
+# Cycles 3.x clamps the spread to at least 1 degree; 4.x renders 0 as a
+# parallel beam, which Tessera approximates by this spread.
+MIN_SPREAD_3X = math.radians(1.0)
+MIN_SPREAD_4X = math.radians(0.1)
+
+
+def area_spread(spread, cycles4=CYCLES_4):
+    """(tan of the half spread, normalisation) of an area light's Spread, as
+    Cycles' scene/light.cpp sets tan_half_spread and normalize_spread (the
+    attenuation is max((tan_half - tan a) * norm, 0)); None at 180 degrees,
+    where Cycles attenuates nothing. In double: 1 / (tan h - h) cancels in
+    float for narrow spreads."""
+    spread = float(spread)
+    if not math.isfinite(spread) or spread >= math.pi:
+        return None
+    spread = max(spread, MIN_SPREAD_4X if cycles4 else MIN_SPREAD_3X)
+    half = 0.5 * spread
+    tan_half = math.tan(half)
+    return tan_half, 1.0 / (tan_half - half)
 
 
 def sun_radiance(irradiance, half_angle, normalize=True, cycles4=CYCLES_4):
@@ -148,9 +177,9 @@ def export_light(scene_core, obj, matrix_world, report):
         if area <= 0.0:
             report.warn(obj.name, f"Area light '{obj.name}' has zero size; it is ignored.")
             return
-        if abs(float(getattr(light, "spread", math.pi)) - math.pi) > 1e-3:
-            report.warn(obj.name, f"Area light '{obj.name}': spread is not supported yet; it emits over the "
-                                  f"full hemisphere.")
+        spread = area_spread(getattr(light, "spread", math.pi))
+        if spread is not None:
+            args["spread_tan"], args["spread_norm"] = spread
         args["axis_u"] = axis_u.tolist()
         args["axis_v"] = axis_v.tolist()
         args["ellipse"] = shape in ('DISK', 'ELLIPSE')
