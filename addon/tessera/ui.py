@@ -128,7 +128,7 @@ def _has(light, name):
 class TESSERA_LIGHT_PT_light(TesseraLightPanel, bpy.types.Panel):
     """The one Light panel, laid out as Cycles' (type, colour, power, shape),
     with only what Tessera reads (export/lights.py): no EEVEE factors, shadow
-    or distance settings, no Cycles spread, portal or per-light bounces."""
+    or distance settings, no Cycles portal or per-light bounces."""
     bl_label = "Light"
 
     def draw(self, context):
@@ -179,16 +179,19 @@ class TESSERA_LIGHT_PT_beam_shape(TesseraLightPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return super().poll(context) and context.light.type == 'SPOT'
+        return super().poll(context) and context.light.type in {'SPOT', 'AREA'}
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         light = context.light
         col = layout.column()
-        col.prop(light, "spot_size", text="Spot Size")
-        col.prop(light, "spot_blend", text="Blend", slider=True)
-        col.prop(light, "show_cone")
+        if light.type == 'SPOT':
+            col.prop(light, "spot_size", text="Spot Size")
+            col.prop(light, "spot_blend", text="Blend", slider=True)
+            col.prop(light, "show_cone")
+        else:
+            col.prop(light, "spread", text="Spread")
 
 
 classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance, TESSERA_PT_passes_data,

@@ -78,7 +78,7 @@ def test_light_tab_has_one_light_panel_and_nothing_eevee(light_type):
     top = [(n, label) for n, label in panels if not getattr(getattr(bpy.types, n, None), "bl_parent_id", "")]
     assert [label for _, label in top].count("Light") == 1, panels
     assert not [n for n, _ in panels if "EEVEE" in n], panels
-    if light_type == 'SPOT':
+    if light_type in ('SPOT', 'AREA'):
         assert "Beam Shape" in [label for _, label in panels], panels
     else:
         assert "Beam Shape" not in [label for _, label in panels], panels
@@ -117,7 +117,7 @@ def light_panel_properties(light_type, shape='SQUARE'):
     ('POINT', None, {"type", "color", "energy", "shadow_soft_size"}),
     ('SPOT', None, {"type", "color", "energy", "shadow_soft_size", "spot_size", "spot_blend"}),
     ('SUN', None, {"type", "color", "energy", "angle"}),
-    ('AREA', 'RECTANGLE', {"type", "color", "energy", "shape", "size", "size_y"}),
+    ('AREA', 'RECTANGLE', {"type", "color", "energy", "shape", "size", "size_y", "spread"}),
 ])
 def test_light_panel_shows_what_tessera_reads(light_type, shape, expected):
     drawn = set(light_panel_properties(light_type, shape))
@@ -127,9 +127,9 @@ def test_light_panel_shows_what_tessera_reads(light_type, shape, expected):
         assert "normalize" in drawn and "exposure" in drawn, drawn
         if light_type in ('POINT', 'SPOT'):
             assert "use_soft_falloff" in drawn, drawn
-    # Settings Tessera does not read: EEVEE's factors and shadows, Cycles' spread.
+    # Settings Tessera does not read: EEVEE's factors, shadows and distance.
     ignored = {"diffuse_factor", "specular_factor", "volume_factor", "transmission_factor", "use_shadow",
-               "spread", "cutoff_distance", "use_custom_distance"}
+               "cutoff_distance", "use_custom_distance"}
     assert not drawn & ignored, drawn & ignored
 
 
