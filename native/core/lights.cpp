@@ -184,14 +184,18 @@ float spread_attenuation(const Light& l, const vec3& w) {
 // With spread, only the disk of radius h tan(half spread) about p's foot on
 // the light's plane (h: p's height above it) emits towards p, as Cycles'
 // area_light_spread_clamp_light uses: a rectangle is clipped to the disk's
-// bounding square (then sampled as above), an ellipse is replaced by the
-// disk when that is smaller (by area; points off the ellipse are no sample).
+// bounding square (then sampled as above); an ellipse is replaced by the
+// smallest of: itself, the disk (by area) and the disk's bounding square
+// clipped to the ellipse's bounding rectangle (as a rectangle above), a
+// sampled point off the ellipse being no sample (zero radiance). Cycles 4.x
+// picks among the same kinds of regions for ellipses (by area only).
 struct AreaRegion {
   enum Kind { Rectangle, Ellipse, SpreadDisk } kind = Rectangle;
   vec3 centre{0.0f};         // of the rectangle, ellipse or disk
   vec3 eu{0.0f}, ev{0.0f};   // its half-extent vectors (the disk: radius x an in-plane frame)
   float area = 0.0f;
   bool by_solid_angle = false;
+  bool may_miss = false;     // covers more than the light: points off it are no sample
   SphericalRectangle rect;
 };
 
@@ -212,25 +216,26 @@ bool area_region(const Light& l, const vec3& p, AreaRegion* r) {
     if (!(lu > 0.0f && lv > 0.0f && radius > 0.0f)) return false;
     const vec3 du = l.axis_u / lu, dv = l.axis_v / lv;
     const float cu = glm::dot(foot - l.position, du), cv = glm::dot(foot - l.position, dv);
-    if (l.ellipse) {
-      if (std::abs(cu) >= lu + radius || std::abs(cv) >= lv + radius) return false;
-      const float disk_area = kPi * radius * radius;
-      if (disk_area < l.area) {
-        const Frame f(l.direction);
-        r->kind = AreaRegion::SpreadDisk;
-        r->centre = foot;
-        r->eu = radius * f.t;
-        r->ev = radius * f.b;
-        r->area = disk_area;
-      }
-    } else {
-      const float u0 = std::max(cu - radius, -lu), u1 = std::min(cu + radius, lu);
-      const float v0 = std::max(cv - radius, -lv), v1 = std::min(cv + radius, lv);
-      if (!(u0 < u1 && v0 < v1)) return false;
+    // The disk's bounding square clipped to the light's (bounding) rectangle.
+    const float u0 = std::max(cu - radius, -lu), u1 = std::min(cu + radius, lu);
+    const float v0 = std::max(cv - radius, -lv), v1 = std::min(cv + radius, lv);
+    if (!(u0 < u1 && v0 < v1)) return false;
+    const float clipped_area = (u1 - u0) * (v1 - v0), disk_area = kPi * radius * radius;
+    if (!l.ellipse || clipped_area < std::min(disk_area, l.area)) {
+      r->kind = AreaRegion::Rectangle;
       r->centre = l.position + (0.5f * (u0 + u1)) * du + (0.5f * (v0 + v1)) * dv;
       r->eu = (0.5f * (u1 - u0)) * du;
       r->ev = (0.5f * (v1 - v0)) * dv;
-      r->area = (u1 - u0) * (v1 - v0);
+      r->area = clipped_area;
+      r->may_miss = l.ellipse;
+    } else if (disk_area < l.area) {
+      const Frame f(l.direction);
+      r->kind = AreaRegion::SpreadDisk;
+      r->centre = foot;
+      r->eu = radius * f.t;
+      r->ev = radius * f.b;
+      r->area = disk_area;
+      r->may_miss = true;
     }
   }
   if (!(r->area > 0.0f)) return false;
@@ -500,8 +505,8 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       } else {
         const vec2 s = r.kind == AreaRegion::Rectangle ? 2.0f * u - vec2(1.0f) : sample_uniform_disk_concentric(u);
         q = r.centre + s.x * r.eu + s.y * r.ev;
-        if (r.kind == AreaRegion::SpreadDisk && !on_area_light(l, q)) return false;
       }
+      if (r.may_miss && !on_area_light(l, q)) return false;
       vec3 w = q - p;
       float dist2 = glm::dot(w, w);
       if (dist2 <= 0.0f) return false;
