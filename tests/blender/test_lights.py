@@ -154,13 +154,20 @@ SPREAD = {
 }
 
 
+# A 30 degree disk is the noisiest: at 64 samples the per-pixel noise is 17-20%
+# in Cycles (3.4.1 to 5.0) and 21% in Tessera, so Tessera vs Cycles after 1/8
+# downsampling was 3.5-5.3% rel. RMSE, at the bound.
+SPREAD_SAMPLES = {"disk_spread30": 256}
+
+
 @pytest.mark.parametrize("kind", sorted(SPREAD))
 def test_area_spread_matches_cycles(kind):
     from tessera import engine
     scene = floor_under_light('AREA', **SPREAD[kind])
-    ours = render(scene, 'TESSERA', samples=64, bounces=0)
+    samples = SPREAD_SAMPLES.get(kind, 64)
+    ours = render(scene, 'TESSERA', samples=samples, bounces=0)
     warnings = " ".join(engine.last_render_stats.get("warnings", []))
-    ref = render(scene, 'CYCLES', samples=64, bounces=0)
+    ref = render(scene, 'CYCLES', samples=samples, bounces=0)
     assert np.all(np.isfinite(ours))
     c = compare(ours, ref)
     print(kind, {k: np.round(v, 4) for k, v in c.items()})
