@@ -231,7 +231,7 @@ def test_multiscatter_glossy_matches_cycles(roughness):
     _check(f"multiscatter glossy r={roughness}", *_both(scene, 256))
 
 
-@pytest.mark.parametrize("ior", [1.1, 1.45, 2.0])
+@pytest.mark.parametrize("ior", [1.0, 1.1, 1.45, 2.0, 2.5])
 def test_glass_ior_ladder_matches_cycles(ior):
     def build(nodes, links):
         return _bsdf(nodes, 'ShaderNodeBsdfGlass', Color=(0.9, 0.95, 1.0), Roughness=0.0, IOR=ior,
