@@ -108,15 +108,12 @@ class TESSERA_PT_passes_data(bpy.types.Panel):
         col.prop(view_layer.tessera, "denoising_store_passes")
 
 
-class TesseraLightPanel:
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
+class TesseraLightPanel(TesseraPanel):
     bl_context = "data"
-    COMPAT_ENGINES = {ENGINE}
 
     @classmethod
     def poll(cls, context):
-        return context.light is not None and context.engine in cls.COMPAT_ENGINES
+        return context.light is not None and super().poll(context)
 
 
 def _has(light, name):
