@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-PACKAGES=(blender cmake g++ make pybind11-dev libglm-dev libtbb-dev python3-dev python3-numpy python3-pytest
+PACKAGES=(blender cmake g++ make pybind11-dev libglm-dev libtbb-dev python3-dev python3-venv python3-numpy python3-pytest
           googletest libgtest-dev clang libclang-rt-14-dev python3-matplotlib)
 missing=()
 for p in "${PACKAGES[@]}"; do
