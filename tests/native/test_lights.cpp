@@ -74,17 +74,27 @@ TEST(Lights, SunDiskGivesTheIrradianceOfItsSolidAngle) {
   EXPECT_NEAR(m_disk / m_delta, 1.0, 0.01) << m_disk << " vs " << m_delta;
 }
 
+namespace {
+
+// A spot 2 above the floor pointing straight down, with the given half angle.
+Light spot_above_floor(float half_angle) {
+  Light spot;
+  spot.type = LightType::Spot;
+  spot.position = vec3(0, 0, 2);
+  spot.direction = vec3(0, 0, -1);
+  spot.spot_cos = std::cos(half_angle);
+  spot.radiance = vec3(10.0f);
+  return spot;
+}
+
+}  // namespace
+
 // Cycles 4.0+ drops the cosine to the axis from the spot attenuation: with
 // the camera at the light, every pixel sees the floor point whose direction
 // from the light is the pixel's own, so the ratio of the two images is that
 // direction's cosine to the axis.
 TEST(Lights, SpotCosineFactorIsOptional) {
-  Light spot;
-  spot.type = LightType::Spot;
-  spot.position = vec3(0, 0, 2);
-  spot.direction = vec3(0, 0, -1);
-  spot.spot_cos = std::cos(0.7f);
-  spot.radiance = vec3(10.0f);
+  const Light spot = spot_above_floor(0.7f);
   Light flat = spot;
   flat.spot_cosine = false;
   Scene a, b;
@@ -224,13 +234,8 @@ TEST(Lights, SphereLightGivesAPointLightsIrradiance) {
 // along x as along y. The camera sits at the light, so each pixel sees the
 // floor point in the pixel's own direction from the light.
 TEST(Lights, ScaledSpotConeIsElliptical) {
-  Light spot;
-  spot.type = LightType::Spot;
-  spot.position = vec3(0, 0, 2);
-  spot.direction = vec3(0, 0, -1);
-  spot.spot_cos = std::cos(0.25f);
+  Light spot = spot_above_floor(0.25f);
   spot.spot_cosine = false;
-  spot.radiance = vec3(10.0f);
   spot.spot_scaled = true;
   spot.spot_to_local = glm::inverse(glm::mat3(vec3(1.8f, 0, 0), vec3(0, 1, 0), vec3(0, 0, 1)));
   Scene s;
