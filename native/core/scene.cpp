@@ -1,5 +1,7 @@
 #include "scene.h"
 
+#include <tbb/parallel_for.h>
+
 #include "traverse.h"
 
 namespace tessera {
@@ -84,13 +86,87 @@ void Scene::rebase_on_camera() {
   render_origin = vec3(glm::dvec3(render_origin) + glm::dvec3(c));
 }
 
+// Instances whose mesh no other instance places, if there are at least two
+// (one keeps its own BLAS: merging would only copy it), move into merged_;
+// tlas_items receives the others. Instances whose transform has no finite
+// inverse stay: the TLAS skips them, as it always did.
+void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
+  merged_ = Mesh{};
+  merged_owner_.clear();
+  num_merged_instances_ = 0;
+  std::vector<uint32_t> uses(meshes.size(), 0);
+  for (const Instance& inst : instances) ++uses[inst.mesh];
+  std::vector<uint32_t> single;
+  std::vector<size_t> first{0};  // merged input index of each single instance's first triangle
+  for (uint32_t i = 0; i < instances.size(); ++i) {
+    const Instance& inst = instances[i];
+    const bool invertible = std::isfinite(glm::determinant(inst.to_local)) && is_finite(vec3(inst.to_local[0])) &&
+                            is_finite(vec3(inst.to_local[1])) && is_finite(vec3(inst.to_local[2])) &&
+                            is_finite(vec3(inst.to_local[3]));
+    if (uses[inst.mesh] == 1 && invertible && !meshes[inst.mesh].prim_ids.empty()) {
+      single.push_back(i);
+      first.push_back(first.back() + meshes[inst.mesh].prim_ids.size());
+    } else {
+      tlas_items.push_back(i);
+    }
+  }
+  if (single.size() < 2) {
+    tlas_items.insert(tlas_items.end(), single.begin(), single.end());
+    return;
+  }
+  // Render-space triangles, each instance's in its mesh's leaf order.
+  const size_t n = first.back();
+  std::vector<vec3> verts(3 * n);
+  std::vector<uint32_t> indices(3 * n);
+  std::vector<MergedOwner> owner(n);
+  tbb::parallel_for(size_t(0), single.size(), [&](size_t s) {
+    const uint32_t i = single[s];
+    const Instance& inst = instances[i];
+    const Mesh& mesh = meshes[inst.mesh];
+    for (size_t k = 0; k < mesh.prim_ids.size(); ++k) {
+      const size_t j = first[s] + k;
+      for (int c = 0; c < 3; ++c) {
+        const vec3& v = mesh.tri_verts[3 * k + c];
+        verts[3 * j + c] = inst.identity ? v : vec3(inst.to_world * vec4(v, 1.0f));
+        indices[3 * j + c] = uint32_t(3 * j + c);
+      }
+      owner[j] = {i, uint32_t(k)};
+    }
+  });
+  MeshInput in;
+  in.positions = &verts[0].x;
+  in.num_vertices = verts.size();
+  in.indices = indices.data();
+  in.num_triangles = n;
+  merged_ = build_mesh(in);
+  merged_owner_.resize(merged_.prim_ids.size());
+  for (size_t j = 0; j < merged_owner_.size(); ++j) merged_owner_[j] = owner[merged_.prim_ids[j]];
+  // The merged tree's Tri4 blocks carry the vertices; shading reads each
+  // instance's own mesh.
+  std::vector<vec3>().swap(merged_.tri_verts);
+  std::vector<uint32_t>().swap(merged_.prim_ids);
+  // The merged meshes' own trees are never walked again: free them, keeping
+  // the bounds (Mesh::bounds) that a later commit() places instances by.
+  for (uint32_t i : single) {
+    Mesh& mesh = meshes[instances[i].mesh];
+    const AABB b = mesh.bounds();
+    mesh.bvh = BVH4{};
+    mesh.bvh8 = BVH8{};
+    mesh.bvh.bounds = b;
+  }
+  num_merged_instances_ = single.size();
+  tlas_items.push_back(kMergedItem);
+}
+
 void Scene::commit() {
   rebase_on_camera();
-  std::vector<AABB> boxes(instances.size());
-  for (size_t i = 0; i < instances.size(); ++i) {
-    const Instance& inst = instances[i];
-    AABB b = transform_box(meshes[inst.mesh].bounds(), inst.to_world);
-    if (is_finite(b.lo) && is_finite(b.hi)) boxes[i] = b;
+  tlas_items_.clear();
+  merge_single_use_instances(tlas_items_);
+  std::vector<AABB> boxes(tlas_items_.size());
+  for (size_t k = 0; k < tlas_items_.size(); ++k) {
+    const uint32_t id = tlas_items_[k];
+    AABB b = id == kMergedItem ? merged_.bounds() : transform_box(meshes[instances[id].mesh].bounds(), instances[id].to_world);
+    if (is_finite(b.lo) && is_finite(b.hi)) boxes[k] = b;
   }
   BuildOptions opt;
   opt.max_leaf_size = 1;  // one instance per leaf: the ray is transformed once per instance
@@ -101,15 +177,37 @@ void Scene::commit() {
 }
 
 template <bool kAnyHit>
-static bool trace_scene(const Scene& scene, const BVH& tlas, const vec3& o, const vec3& d, float tmax, Hit* hit) {
-  if (tlas.nodes.empty()) return false;
+bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
+  if (tlas_.nodes.empty()) return false;
+  // The merged triangles of a scene without instancing: no TLAS to walk.
+  if (tlas_items_.size() == 1 && tlas_items_[0] == kMergedItem) {
+    if (kAnyHit) return occluded_mesh(merged_, o, d, tmax);
+    MeshHit mh;
+    if (!intersect_mesh(merged_, o, d, tmax, mh)) return false;
+    const MergedOwner& owner = merged_owner_[mh.prim];
+    *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim};
+    return true;
+  }
   TraversalRay ray(o, d, tmax);
-  return traverse<kAnyHit>(tlas.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
+  return traverse<kAnyHit>(tlas_.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
     bool any = false;
     for (uint32_t k = first; k < first + count; ++k) {
-      const uint32_t id = tlas.prim_order[k];
-      const Instance& inst = scene.instances[id];
-      const Mesh& mesh = scene.meshes[inst.mesh];
+      const uint32_t id = tlas_items_[tlas_.prim_order[k]];
+      if (id == kMergedItem) {
+        if (kAnyHit) {
+          if (occluded_mesh(merged_, r.o, r.d, r.tmax)) return true;
+        } else {
+          MeshHit mh;
+          if (intersect_mesh(merged_, r.o, r.d, r.tmax, mh)) {
+            const MergedOwner& owner = merged_owner_[mh.prim];
+            *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim};
+            any = true;
+          }
+        }
+        continue;
+      }
+      const Instance& inst = instances[id];
+      const Mesh& mesh = meshes[inst.mesh];
       vec3 lo = r.o, ld = r.d;
       if (!inst.identity) {
         lo = vec3(inst.to_local * vec4(r.o, 1.0f));
@@ -135,12 +233,12 @@ static bool trace_scene(const Scene& scene, const BVH& tlas, const vec3& o, cons
 // kernels assume finite rays).
 bool Scene::intersect(const Ray& ray, Hit& hit) const {
   if (!is_finite(ray.o) || !is_finite(ray.d)) return false;
-  return trace_scene<false>(*this, tlas_, ray.o, ray.d, ray.tmax, &hit);
+  return trace<false>(ray.o, ray.d, ray.tmax, &hit);
 }
 
 bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {
   if (!is_finite(o) || !is_finite(d)) return false;
-  return trace_scene<true>(*this, tlas_, o, d, tmax, nullptr);
+  return trace<true>(o, d, tmax, nullptr);
 }
 
 SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
@@ -253,7 +351,8 @@ size_t Scene::num_instanced_triangles() const {
 }
 
 size_t Scene::memory_bytes() const {
-  size_t n = tlas_.memory_bytes() + instances.capacity() * sizeof(Instance);
+  size_t n = tlas_.memory_bytes() + instances.capacity() * sizeof(Instance) + merged_.memory_bytes() +
+             merged_owner_.capacity() * sizeof(MergedOwner);
   for (const Mesh& m : meshes) n += m.memory_bytes();
   return n;
 }

@@ -103,6 +103,8 @@ class Scene {
   size_t num_triangles() const;           // unique (stored) triangles
   size_t num_instanced_triangles() const; // as rendered
   size_t memory_bytes() const;            // triangles, attributes and BVHs
+  // Instances whose triangles commit() moved into the merged BLAS (below).
+  size_t num_merged_instances() const { return merged_owner_.empty() ? 0 : num_merged_instances_; }
   double build_seconds = 0.0;
 
  private:
@@ -115,7 +117,26 @@ class Scene {
   void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,
                         const Instance& inst) const;
   float texture_value(const TextureRef& ref, vec2 uv) const;
+  void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
+  template <bool kAnyHit>
+  bool trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const;
+  // The TLAS's primitives: an instance index, or kMergedItem for merged_.
+  static constexpr uint32_t kMergedItem = ~0u;
   BVH tlas_;
+  std::vector<uint32_t> tlas_items_;
+  // Meshes placed by exactly one instance gain nothing from a BLAS of their
+  // own: their triangles, in render space, share one BLAS (as Cycles puts
+  // every object that is not instanced into its top-level BVH), so a ray
+  // walks one tree instead of overlapping instance boxes, each with its own
+  // ray transform and tree. merged_owner_ maps a merged leaf-order triangle
+  // back to its instance and that mesh's leaf-order index, so hits (and all
+  // shading) are as if the instance had been hit.
+  struct MergedOwner {
+    uint32_t instance, prim;
+  };
+  Mesh merged_;
+  std::vector<MergedOwner> merged_owner_;
+  size_t num_merged_instances_ = 0;
   LightSampler light_sampler_;
 };
 

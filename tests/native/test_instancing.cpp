@@ -146,3 +146,72 @@ TEST(Instancing, ThousandInstancesStoreOneMesh) {
   }
   EXPECT_GT(hit_count, 900u);
 }
+
+// Meshes that one instance places share one render-space BLAS (Scene::
+// merge_single_use_instances); meshes placed more often keep theirs. Hits
+// report the instance and its mesh's triangle as before (checked against
+// brute force over every instance's world-space triangles), and the merged
+// meshes' own trees are freed, so memory does not double.
+TEST(Instancing, SingleUseMeshesShareOneBLAS) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  auto soup = [&](int n) {
+    TriangleSoup s;
+    for (int t = 0; t < n; ++t) {
+      const vec3 c(u01(rng), u01(rng), u01(rng));
+      for (int k = 0; k < 3; ++k) {
+        const vec3 p = c + 0.15f * vec3(u01(rng) - 0.5f, u01(rng) - 0.5f, u01(rng) - 0.5f);
+        s.positions.insert(s.positions.end(), {p.x, p.y, p.z});
+        s.indices.push_back(uint32_t(3 * t + k));
+      }
+    }
+    return s;
+  };
+  std::vector<TriangleSoup> soups;
+  Scene s;
+  size_t mesh_bytes = 0;
+  for (int m = 0; m < 6; ++m) {
+    soups.push_back(soup(300 + 50 * m));
+    s.meshes.push_back(build_mesh(input_of(soups.back())));
+    mesh_bytes += s.meshes.back().memory_bytes();
+  }
+  // Meshes 0-4 placed once each, mesh 5 three times.
+  for (int i = 0; i < 8; ++i) s.add_instance(uint32_t(std::min(i, 5)), placement(i, 2, 1.1f), {});
+  s.commit();
+  EXPECT_EQ(s.num_merged_instances(), 5u);
+  EXPECT_LT(s.memory_bytes(), mesh_bytes * 13 / 10) << "merging kept two trees per mesh";
+
+  const AABB sb = s.bounds();
+  size_t hits = 0, differ = 0, rays = 0;
+  for (int r = 0; r < 4000; ++r) {
+    const vec3 o = sb.center() + 1.5f * glm::length(sb.extent()) * glm::normalize(vec3(u01(rng) - 0.5f, u01(rng) - 0.5f, u01(rng) - 0.5f));
+    const vec3 target = sb.lo + sb.extent() * vec3(u01(rng), u01(rng), u01(rng));
+    const vec3 d = glm::normalize(target - o);
+    // Brute force in world space.
+    const RayShear shear(d);
+    float best = kInf;
+    uint32_t best_inst = ~0u, best_tri = ~0u;
+    for (uint32_t i = 0; i < s.instances.size(); ++i) {
+      const TriangleSoup& w = soups[s.instances[i].mesh];
+      for (uint32_t t = 0; t < w.num_triangles(); ++t) {
+        vec3 p[3];
+        for (int k = 0; k < 3; ++k) {
+          const float* q = &w.positions[3 * w.indices[3 * t + k]];
+          p[k] = vec3(s.instances[i].to_world * vec4(q[0], q[1], q[2], 1.0f));
+        }
+        TriangleHit th;
+        if (intersect_triangle(p[0], p[1], p[2], o, shear, best, th)) best = th.t, best_inst = i, best_tri = t;
+      }
+    }
+    Hit h;
+    const bool hit = s.intersect(Ray{o, d, kInf}, h);
+    EXPECT_EQ(s.occluded(o, d, kInf), hit);
+    ++rays;
+    hits += best != kInf;
+    const uint32_t tri = hit ? s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim] : ~0u;
+    if (hit != (best != kInf) || (hit && (h.instance != best_inst || tri != best_tri || std::abs(h.t - best) > 1e-4f * best)))
+      ++differ;
+  }
+  EXPECT_GT(hits, rays / 4);
+  EXPECT_LE(differ, rays / 500) << differ << " of " << rays << " rays differ from brute force";
+}
