@@ -5,7 +5,12 @@
 #include "bvh8.h"
 #include "simd_tri4.h"
 
+#include <tbb/parallel_invoke.h>
+#include <tbb/task_group.h>
+
 #include <algorithm>
+#include <atomic>
+#include <memory>
 #include <stdexcept>
 
 namespace tessera {
@@ -15,6 +20,15 @@ namespace {
 // Collapses the binary tree into an N-wide one (Out: BVH4 or BVH8, Node its
 // node type): each node takes the children of its largest-area descendants
 // until it has N.
+//
+// Two passes, both TBB-parallel over subtrees: plan() goes bottom-up over the
+// binary tree and fixes, per binary node, whether it becomes a packed leaf and
+// how much arena space its subtree takes as a wide node (position-independent:
+// every subtree starts on a node, 64-byte aligned); emit() then writes the
+// subtrees concurrently, each at the offset its left siblings' sizes give
+// (as Embree's builders place nodes by precomputed offsets). The arena is
+// allocated once, with its exact size, and its layout is the same however many
+// threads run.
 template <int N, typename Node, typename Out>
 struct Collapser {
   const BVH& bin;
@@ -23,72 +37,58 @@ struct Collapser {
   Out out;
 
   Collapser(const BVH& b, const vec3* v, const BuildOptions& o) : bin(b), verts(v), opt(o) {}
-  // Per binary node: triangles below it, and whether the subtree, where it
-  // becomes a child of a wide node, is stored as one leaf of packed blocks
-  // instead of a node of its own (see plan()).
-  std::vector<uint32_t> tris_below;
-  std::vector<uint8_t> as_leaf;
+
+  // Arena offsets count 32-byte units (kBlockUnit); a node is 64-byte aligned.
+  static constexpr uint32_t kNodeUnits = uint32_t(sizeof(Node) / kBlockUnit);
+  static constexpr uint32_t kBlockUnits = uint32_t(sizeof(Tri4) / kBlockUnit);
+  static_assert(sizeof(Node) % kNodeUnit == 0 && sizeof(Tri4) % kBlockUnit == 0 && kNodeUnit == 2 * kBlockUnit,
+                "arena units");
+  static uint32_t align_node(uint32_t units) { return (units + 1) & ~1u; }
+
+  // Arena space of a subtree emitted as a wide node: with leaves next to
+  // their parent everything is in `nodes`; otherwise the node region and the
+  // block region (all nodes first, then all blocks) grow separately.
+  struct Space {
+    uint32_t nodes = 0, blocks = 0;
+  };
+
+  // Per binary node (filled by plan(), uninitialised before): triangles
+  // below it, whether the subtree, where it becomes a child of a wide node,
+  // is stored as one leaf of packed blocks instead of a node of its own, its
+  // wide SAH cost, and its space as a wide node.
+  std::unique_ptr<uint32_t[]> tris_below;
+  std::unique_ptr<uint8_t[]> as_leaf;
+  std::unique_ptr<float[]> cost_;
+  std::unique_ptr<Space[]> space_;
+  std::atomic<uint32_t> num_nodes{0}, num_blocks{0};
 
   static float area(const BVHNode& n) { return AABB{n.lo, n.hi}.half_area(); }
   static uint32_t blocks_for(uint32_t tris) { return (tris + 3) / 4; }
+  bool shared() const { return opt.leaves_next_to_parent; }
+  char* mem() { return reinterpret_cast<char*>(out.mem.data()); }
 
-  // The triangles of binary subtree i, packed four to a block (a
-  // subtree's leaves index one contiguous range of the leaf order); the
-  // last block repeats its last triangle in its spare lanes.
-  uint32_t emit_leaf(uint32_t i) {
-    uint32_t lo = ~0u, hi = 0;
-    range(i, lo, hi);
-    const uint32_t count = hi - lo;
+  // The triangles of binary subtree i, packed four to a block at arena unit
+  // `unit` (a subtree's leaves index one contiguous range of the leaf order,
+  // starting at its leftmost leaf); the last block repeats its last triangle
+  // in its spare lanes.
+  uint32_t emit_leaf(uint32_t i, uint32_t unit) {
+    uint32_t first = i;
+    while (!bin.nodes[first].is_leaf()) first = bin.nodes[first].first;
+    const uint32_t lo = bin.nodes[first].first, count = tris_below[i];
     const uint32_t blocks = blocks_for(count);
-    const size_t off = alloc_blocks(blocks);
-    if (!dry) {
-      Tri4* out_blocks = reinterpret_cast<Tri4*>(mem() + off);
-      for (uint32_t b = 0; b < blocks; ++b) {
-        Tri4& t = out_blocks[b];
-        for (int lane = 0; lane < 4; ++lane) {
-          const uint32_t k = lo + std::min(4 * b + lane, count - 1);
-          for (int v = 0; v < 3; ++v)
-            for (int a = 0; a < 3; ++a) t.v[v][a][lane] = verts[3 * size_t(k) + v][a];
-          t.prim[lane] = k;
-        }
+    if (unit >= (uint32_t(1) << 28)) throw std::length_error("mesh too large for the wide BVH's 28-bit leaf references");
+    Tri4* out_blocks = reinterpret_cast<Tri4*>(mem() + size_t(unit) * kBlockUnit);
+    for (uint32_t b = 0; b < blocks; ++b) {
+      Tri4& t = out_blocks[b];
+      for (int lane = 0; lane < 4; ++lane) {
+        const uint32_t k = lo + std::min(4 * b + lane, count - 1);
+        const vec3* v = verts + 3 * size_t(k);
+        for (int a = 0; a < 3; ++a) t.v[0][a][lane] = v[0][a], t.v[1][a][lane] = v[1][a], t.v[2][a][lane] = v[2][a];
+        t.prim[lane] = k;
       }
     }
-    out.num_blocks += blocks;
-    const size_t unit = off / kBlockUnit;
-    if (unit >= (size_t(1) << 28)) throw std::length_error("mesh too large for the wide BVH's 28-bit leaf references");
-    return kBVH4LeafBit | (uint32_t(unit) << 3) | (blocks - 1);
-  }
-
-  // Arena cursors: nodes and blocks share one when leaves sit next to their
-  // parent; otherwise blocks start after the last node (dry-run sizes).
-  bool dry = true;
-  size_t node_cursor = 0, block_cursor = 0;
-  bool shared_cursor() const { return opt.leaves_next_to_parent; }
-  char* mem() { return reinterpret_cast<char*>(out.mem.data()); }
-  size_t alloc_node() {
-    size_t& c = node_cursor;
-    c = (c + kNodeUnit - 1) / kNodeUnit * kNodeUnit;
-    const size_t off = c;
-    c += sizeof(Node);
-    return off;
-  }
-  size_t alloc_blocks(uint32_t blocks) {
-    size_t& c = shared_cursor() ? node_cursor : block_cursor;
-    c = (c + kBlockUnit - 1) / kBlockUnit * kBlockUnit;
-    const size_t off = c;
-    c += blocks * sizeof(Tri4);
-    return off;
-  }
-
-  void range(uint32_t i, uint32_t& lo, uint32_t& hi) const {
-    const BVHNode& n = bin.nodes[i];
-    if (n.is_leaf()) {
-      lo = std::min(lo, n.first);
-      hi = std::max(hi, n.first + n.count);
-      return;
-    }
-    range(n.first, lo, hi);
-    range(n.first + 1, lo, hi);
+    num_blocks.fetch_add(blocks, std::memory_order_relaxed);
+    return kBVH4LeafBit | (unit << 3) | (blocks - 1);
   }
 
   static void clear(Node& node) {
@@ -110,21 +110,25 @@ struct Collapser {
   // are opened until there are N (or only leaves are left).
   int open_children(const BVHNode& n, uint32_t* kids) const {
     kids[0] = n.first, kids[1] = n.first + 1;
+    float areas[N];
+    areas[0] = area(bin.nodes[kids[0]]), areas[1] = area(bin.nodes[kids[1]]);
     int count = 2;
     while (count < N) {
       int best = -1;
       float best_area = -1.0f;
       for (int c = 0; c < count; ++c) {
-        const BVHNode& k = bin.nodes[kids[c]];
-        if (!k.is_leaf() && area(k) > best_area) {
-          best_area = area(k);
+        if (!bin.nodes[kids[c]].is_leaf() && areas[c] > best_area) {
+          best_area = areas[c];
           best = c;
         }
       }
       if (best < 0) break;
       const uint32_t split = kids[best];
       kids[best] = bin.nodes[split].first;
-      kids[count++] = bin.nodes[split].first + 1;
+      kids[count] = bin.nodes[split].first + 1;
+      areas[best] = area(bin.nodes[kids[best]]);
+      areas[count] = area(bin.nodes[kids[count]]);
+      ++count;
     }
     return count;
   }
@@ -139,102 +143,128 @@ struct Collapser {
   // whole wide node visit for a two- or three-way split: as a leaf its
   // triangles share blocks and no node is visited (Embree's BVH8 builder
   // gets the same effect by splitting only ranges of more than four triangles).
+  // Also the subtree's arena space as a wide node (see Space).
   static constexpr uint32_t kMaxLeafBlocks = 2;
-  float plan(uint32_t i) {
+  static constexpr int kParallelPlanDepth = 6;  // 64 tasks at most
+  void plan(uint32_t i, int depth) {
     const BVHNode& n = bin.nodes[i];
     const float a = area(n);
     if (n.is_leaf()) {
       tris_below[i] = n.count;
-      return cost_[i] = a * opt.intersection_cost * float(blocks_for(n.count));
+      as_leaf[i] = 0;
+      cost_[i] = a * opt.intersection_cost * float(blocks_for(n.count));
+      space_[i] = Space{};
+      return;
     }
-    float child_cost = plan(n.first) + plan(n.first + 1);
+    if (opt.parallel && depth < kParallelPlanDepth) {
+      tbb::parallel_invoke([&] { plan(n.first, depth + 1); }, [&] { plan(n.first + 1, depth + 1); });
+    } else {
+      plan(n.first, depth + 1);
+      plan(n.first + 1, depth + 1);
+    }
     tris_below[i] = tris_below[n.first] + tris_below[n.first + 1];
     uint32_t kids[N];
     const int count = open_children(n, kids);
-    if (count != 2) {
-      child_cost = 0.0f;
-      for (int c = 0; c < count; ++c) child_cost += cost_[kids[c]];
+    float child_cost = 0.0f;
+    Space s;
+    uint32_t leaf_units = 0;
+    for (int c = 0; c < count; ++c) {
+      child_cost += cost_[kids[c]];
+      if (is_leaf_child(kids[c])) {
+        leaf_units += kBlockUnits * blocks_for(tris_below[kids[c]]);
+      } else {
+        s.nodes += space_[kids[c]].nodes;
+        s.blocks += space_[kids[c]].blocks;
+      }
     }
+    if (shared()) {
+      s.nodes += align_node(kNodeUnits + leaf_units);
+    } else {
+      s.nodes += kNodeUnits;
+      s.blocks += leaf_units;
+    }
+    space_[i] = s;
     const float node_cost = a * opt.traversal_cost + child_cost;
     const uint32_t blocks = blocks_for(tris_below[i]);
     const float leaf_cost = a * opt.intersection_cost * float(blocks);
-    as_leaf[i] = blocks <= kMaxLeafBlocks && leaf_cost <= node_cost;
+    as_leaf[i] = opt.collapse_small_subtrees && blocks <= kMaxLeafBlocks && leaf_cost <= node_cost;
     cost_[i] = as_leaf[i] ? leaf_cost : node_cost;
-    return cost_[i];
   }
-  std::vector<float> cost_;
 
-  // Returns the reference to the subtree of binary node i (in the dry run
-  // only the cursors move: the exact arena size).
-  uint32_t emit(uint32_t i) {
-    if (is_leaf_child(i)) return emit_leaf(i);
+  // Subtrees of more triangles than this are emitted as TBB tasks.
+  static constexpr uint32_t kParallelEmit = 1024;
+
+  // Writes binary node i as a wide node at arena unit `unit` (its leaf blocks
+  // right behind it, or at `block_unit` in the block region), then its
+  // subtrees at the offsets plan()'s sizes give; returns its reference.
+  uint32_t emit(uint32_t i, uint32_t unit, uint32_t block_unit) {
     const BVHNode& n = bin.nodes[i];
     uint32_t kids[N];
     const int count = open_children(n, kids);
-    const size_t off = alloc_node();
-    ++out.num_nodes;
+    num_nodes.fetch_add(1, std::memory_order_relaxed);
     uint32_t refs[N];
     // Leaf children first, right behind the node, then the subtrees.
+    uint32_t b = shared() ? unit + kNodeUnits : block_unit;
     for (int c = 0; c < count; ++c)
-      if (is_leaf_child(kids[c])) refs[c] = emit_leaf(kids[c]);
-    for (int c = 0; c < count; ++c)
-      if (!is_leaf_child(kids[c])) refs[c] = emit(kids[c]);
-    if (!dry) {
-      Node& node = *reinterpret_cast<Node*>(mem() + off);
-      clear(node);
-      for (int c = 0; c < count; ++c) set_child(node, c, bin.nodes[kids[c]], refs[c]);
-      node.num_children = uint32_t(count);
+      if (is_leaf_child(kids[c])) {
+        refs[c] = emit_leaf(kids[c], b);
+        b += kBlockUnits * blocks_for(tris_below[kids[c]]);
+      }
+    uint32_t next = shared() ? align_node(b) : unit + kNodeUnits;
+    uint32_t next_block = shared() ? 0 : b;
+    tbb::task_group tasks;
+    bool spawned = false;
+    for (int c = 0; c < count; ++c) {
+      const uint32_t k = kids[c];
+      if (is_leaf_child(k)) continue;
+      if (opt.parallel && tris_below[k] > kParallelEmit) {
+        tasks.run([this, &refs, c, k, next, next_block] { refs[c] = emit(k, next, next_block); });
+        spawned = true;
+      } else {
+        refs[c] = emit(k, next, next_block);
+      }
+      next += space_[k].nodes;
+      next_block += space_[k].blocks;
     }
-    return uint32_t(off / kNodeUnit);
-  }
-
-  // Emits the tree from binary node 0 (a leaf root gets a node with one child).
-  void emit_root() {
-    const BVHNode& root = bin.nodes[0];
-    if (!root.is_leaf()) {
-      emit(0);
-      return;
-    }
-    const size_t off = alloc_node();
-    ++out.num_nodes;
-    const uint32_t ref = emit_leaf(0);
-    if (!dry) {
-      Node& node = *reinterpret_cast<Node*>(mem() + off);
-      clear(node);
-      set_child(node, 0, root, ref);
-      node.num_children = 1;
-    }
+    if (spawned) tasks.wait();
+    Node& node = *reinterpret_cast<Node*>(mem() + size_t(unit) * kBlockUnit);
+    clear(node);
+    for (int c = 0; c < count; ++c) set_child(node, c, bin.nodes[kids[c]], refs[c]);
+    node.num_children = uint32_t(count);
+    return unit / 2;  // node references count 64-byte lines
   }
 
   void run() {
     if (bin.nodes.empty()) return;
-    tris_below.assign(bin.nodes.size(), 0);
-    as_leaf.assign(bin.nodes.size(), 0);
-    cost_.assign(bin.nodes.size(), 0.0f);
-    if (opt.collapse_small_subtrees) {
-      plan(0);
+    const BVHNode& root = bin.nodes[0];
+    size_t units = 0;
+    if (root.is_leaf()) {
+      // A leaf root gets a node with one child; its blocks follow the node.
+      tris_below.reset(new uint32_t[1]{root.count});
+      as_leaf.reset(new uint8_t[1]{0});
+      units = kNodeUnits + kBlockUnits * blocks_for(root.count);
+      out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
+      Node& node = *reinterpret_cast<Node*>(mem());
+      clear(node);
+      set_child(node, 0, root, emit_leaf(0, kNodeUnits));
+      node.num_children = 1;
+      num_nodes = 1;
     } else {
-      for (size_t i = 0; i < bin.nodes.size(); ++i) tris_below[i] = bin.nodes[i].is_leaf() ? bin.nodes[i].count : 0;
+      const size_t n = bin.nodes.size();
+      tris_below.reset(new uint32_t[n]);
+      as_leaf.reset(new uint8_t[n]);
+      cost_.reset(new float[n]);
+      space_.reset(new Space[n]);
+      plan(0, 0);
+      as_leaf[0] = 0;  // the root stays a node
+      const Space s = space_[0];
+      units = size_t(s.nodes) + s.blocks;  // the node region ends 64-byte aligned
+      out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
+      emit(0, 0, s.nodes);
     }
-    as_leaf[0] = 0;  // the root stays a node
-    // Dry run: the node region's size (blocks after it) and the arena size,
-    // so the arena is allocated once: no regrowth, no shrink-to-fit copy.
-    dry = true;
-    node_cursor = block_cursor = 0;
-    emit_root();
-    size_t nodes_end = 0;
-    if (!shared_cursor()) {
-      nodes_end = (node_cursor + kNodeUnit - 1) / kNodeUnit * kNodeUnit;
-      node_cursor = 0, block_cursor = nodes_end;
-      emit_root();
-    }
-    const size_t bytes = std::max(node_cursor, block_cursor);
-    out.mem.resize((bytes + sizeof(BVHLine) - 1) / sizeof(BVHLine));
-    out.num_nodes = out.num_blocks = 0;
-    dry = false;
-    node_cursor = 0, block_cursor = nodes_end;
-    emit_root();
-    out.bounds = AABB{bin.nodes[0].lo, bin.nodes[0].hi};
+    out.num_nodes = num_nodes.load();
+    out.num_blocks = num_blocks.load();
+    out.bounds = AABB{root.lo, root.hi};
   }
 };
 

@@ -2,9 +2,11 @@
 // brute force.
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <atomic>
 #include <cstdlib>
+#include <cstring>
 #include <random>
 
 #include "core/mesh.h"
@@ -405,5 +407,85 @@ TEST(BVH, SmallSubtreesCollapseIntoLeaves) {
       ASSERT_EQ(hit_a, hit_b) << "ray " << i;
       if (hit_a) ASSERT_EQ(ha.t, hb.t) << "ray " << i;
     }
+  }
+}
+
+namespace {
+
+// Two wide trees with the same layout: the same arena size and counts, and
+// every node reached from the root and every leaf block byte for byte equal
+// (the padding between them is never read).
+template <typename Tree>
+void expect_same_wide_tree(const Tree& a, const Tree& b) {
+  ASSERT_EQ(a.mem.size(), b.mem.size());
+  ASSERT_EQ(a.num_nodes, b.num_nodes);
+  ASSERT_EQ(a.num_blocks, b.num_blocks);
+  size_t nodes = 0, blocks = 0;
+  std::vector<uint32_t> stack{0u};
+  while (!stack.empty()) {
+    const uint32_t i = stack.back();
+    stack.pop_back();
+    const auto& na = a.node(i);
+    ASSERT_EQ(std::memcmp(&na, &b.node(i), sizeof(na)), 0) << "node " << i;
+    ++nodes;
+    for (uint32_t c = 0; c < na.num_children; ++c) {
+      const uint32_t ref = na.child[c];
+      if (!bvh4_is_leaf(ref)) {
+        stack.push_back(ref);
+        continue;
+      }
+      const uint32_t nb = bvh4_leaf_blocks(ref);
+      ASSERT_EQ(std::memcmp(a.blocks(ref), b.blocks(ref), nb * sizeof(Tri4)), 0) << "leaf " << ref;
+      blocks += nb;
+    }
+  }
+  EXPECT_EQ(nodes, a.num_nodes);
+  EXPECT_EQ(blocks, a.num_blocks);
+}
+
+}  // namespace
+
+// The build runs as TBB tasks (parallel binning and partitions at the top,
+// subtrees, the collapse's plan and emission); the tree must not depend on
+// how many threads ran it, nor (for the collapse) on whether it ran in
+// parallel at all: the subtrees are placed at offsets computed beforehand.
+TEST(BVH, ParallelBuildIsIndependentOfThreadCount) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/igea.ply");
+  for (int w : widths()) {
+    for (bool next_to_parent : {true, false}) {
+      BuildOptions opt = with_width({}, w);
+      opt.leaves_next_to_parent = next_to_parent;
+      Mesh one, two;
+      tbb::task_arena(1).execute([&] { one = make_mesh(s, opt); });
+      tbb::task_arena(2).execute([&] { two = make_mesh(s, opt); });
+      ASSERT_EQ(one.prim_ids, two.prim_ids);
+      EXPECT_EQ(mesh_sah_cost(one), mesh_sah_cost(two));
+      if (one.width() == 8) expect_same_wide_tree(one.bvh8, two.bvh8);
+      else expect_same_wide_tree(one.bvh, two.bvh);
+    }
+  }
+}
+
+TEST(BVH, ParallelCollapseMatchesSerialCollapse) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
+  std::vector<AABB> boxes(s.num_triangles());
+  const vec3* pos = reinterpret_cast<const vec3*>(s.positions.data());
+  for (size_t i = 0; i < boxes.size(); ++i)
+    for (int k = 0; k < 3; ++k) boxes[i].grow(pos[s.indices[3 * i + k]]);
+  BuildOptions opt;
+  opt.sah_block_size = 4;
+  const BVH binary = build_bvh(boxes, opt);
+  std::vector<vec3> verts(3 * binary.prim_order.size());
+  for (size_t i = 0; i < binary.prim_order.size(); ++i)
+    for (int k = 0; k < 3; ++k) verts[3 * i + k] = pos[s.indices[3 * binary.prim_order[i] + k]];
+  for (bool next_to_parent : {true, false}) {
+    BuildOptions par = opt, ser = opt;
+    par.leaves_next_to_parent = ser.leaves_next_to_parent = next_to_parent;
+    ser.parallel = false;
+    tbb::task_arena(2).execute([&] {
+      expect_same_wide_tree(collapse_to_bvh4(binary, verts.data(), par), collapse_to_bvh4(binary, verts.data(), ser));
+      if (cpu_simd_level() == SimdLevel::AVX2)
+        expect_same_wide_tree(collapse_to_bvh8(binary, verts.data(), par), collapse_to_bvh8(binary, verts.data(), ser));
+    });
   }
 }
