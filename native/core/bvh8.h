@@ -30,9 +30,19 @@ struct BVH8 : WideBVH<BVH8Node> {};
 BVH8 collapse_to_bvh8(const BVH& binary, const vec3* tri_verts, const BuildOptions& options = {});
 float sah_cost(const BVH8& bvh, const BuildOptions& options = {});
 
-// AVX2 traversal (bvh8_avx2.cpp). Call only when cpu_simd_level() == AVX2.
+// BVH8 traversal (bvh8_avx2.cpp). Call only when cpu_simd_level() == AVX2.
+// Runs the AVX-512 kernels below when g_bvh8_avx512 is set (at start-up:
+// cpu_has_avx512()), the AVX2 ones otherwise; both give the same hits.
 template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit);
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax);
+
+// The kernel choice; tests and benchmarks may flip it (never while tracing).
+extern bool g_bvh8_avx512;
+
+// AVX-512 traversal (bvh8_avx512.cpp). Call only when cpu_has_avx512().
+template <bool kOrdered>
+bool bvh8_intersect_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit);
+bool bvh8_occluded_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float tmax);
 
 }  // namespace tessera

@@ -11,7 +11,13 @@
 #include <cstring>
 
 #include "bvh8.h"
+#include "simd.h"
 #include "triangle.h"
+
+namespace tessera {
+// Baseline code (outside the target region): the kernel choice.
+bool g_bvh8_avx512 = cpu_has_avx512();
+}  // namespace tessera
 
 #pragma GCC push_options
 #pragma GCC target("avx2")
@@ -115,6 +121,7 @@ WideCounters g_wide_counters;
 
 template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
+  if (g_bvh8_avx512) return bvh8_intersect_avx512<kOrdered>(bvh, o, d, tmax, hit);
   if (bvh.empty()) return false;
   WC(rays);
   Ray8 ray(o, d, tmax);
@@ -125,6 +132,7 @@ template bool bvh8_intersect_avx2<true>(const BVH8&, const vec3&, const vec3&, f
 template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
 
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
+  if (g_bvh8_avx512) return bvh8_occluded_avx512(bvh, o, d, tmax);
   if (bvh.empty()) return false;
   WC(rays);
   Ray8 ray(o, d, tmax);

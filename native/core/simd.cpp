@@ -20,6 +20,23 @@ SimdLevel cpu_simd_level() {
   return level;
 }
 
+static bool detect_avx512() {
+  if (cpu_simd_level() != SimdLevel::AVX2) return false;
+  const char* env = std::getenv("TESSERA_SIMD");
+  if (env && (std::strcmp(env, "avx2") == 0 || std::strcmp(env, "AVX2") == 0)) return false;
+#if defined(__x86_64__) || defined(__i386__)
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+         __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+#else
+  return false;
+#endif
+}
+
+bool cpu_has_avx512() {
+  static const bool has = detect_avx512();
+  return has;
+}
+
 const char* simd_level_name(SimdLevel level) { return level == SimdLevel::AVX2 ? "avx2" : "sse2"; }
 
 }  // namespace tessera

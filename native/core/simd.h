@@ -1,6 +1,7 @@
 // Run-time choice of the SIMD path. The product is compiled for the x86-64
-// baseline (SSE2); code for AVX2 lives in functions compiled for that target
-// (bvh8_avx2.cpp) and is only called when the CPU reports it.
+// baseline (SSE2); code for AVX2 and AVX-512 lives in functions compiled for
+// that target (bvh8_avx2.cpp, bvh8_avx512.cpp) and is only called when the
+// CPU reports it.
 #pragma once
 
 namespace tessera {
@@ -8,9 +9,13 @@ namespace tessera {
 enum class SimdLevel { SSE2 = 0, AVX2 = 1 };
 
 // What the CPU supports, checked once (__builtin_cpu_supports). The
-// environment variable TESSERA_SIMD=sse2 forces the baseline (for tests and
-// benchmarks of the fallback).
+// environment variable TESSERA_SIMD=sse2 forces the baseline, TESSERA_SIMD=avx2
+// AVX2 without AVX-512 (for tests and benchmarks of each path).
 SimdLevel cpu_simd_level();
 const char* simd_level_name(SimdLevel level);
+
+// AVX-512 F, VL, DQ and BW on top of AVX2 (cpu_simd_level() is then AVX2:
+// same BVH8, the AVX-512 traversal replaces the AVX2 one; see bvh8.h).
+bool cpu_has_avx512();
 
 }  // namespace tessera

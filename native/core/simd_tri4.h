@@ -13,13 +13,18 @@
 
 namespace tessera {
 #ifdef TESSERA_BVH_COUNTERS
-struct WideCounters { unsigned long long rays, nodes, hits_children, leaves, blocks, sign_pass, t_pass; };
+struct WideCounters {
+  unsigned long long rays, nodes, hits_children, leaves, blocks, sign_pass, t_pass;
+  unsigned long long hit_hist[9];  // node visits by number of children hit
+};
 extern WideCounters g_wide_counters;
 #define WC(x) (++g_wide_counters.x)
 #define WCN(x, n) (g_wide_counters.x += (n))
+#define WCH(n) (++g_wide_counters.hit_hist[n])
 #else
 #define WC(x) ((void)0)
 #define WCN(x, n) ((void)0)
+#define WCH(n) ((void)0)
 #endif
 
 namespace {

@@ -50,6 +50,7 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
       alignas(32) float dist[kWidth];
       int mask = Traits::test(n, ray, dist);
       WCN(hits_children, __builtin_popcount(mask));
+      WCH(__builtin_popcount(mask));
       if (mask != 0) {
         const int first = __builtin_ctz(mask);
         mask &= mask - 1;
@@ -137,6 +138,7 @@ bool wide_occluded(const char* base, typename Traits::Ray& ray) {
       alignas(32) float dist[Traits::kWidth];
       int mask = Traits::test(n, ray, dist);
       WCN(hits_children, __builtin_popcount(mask));
+      WCH(__builtin_popcount(mask));
       if (mask != 0) {
         const int first = __builtin_ctz(mask);
         for (int m = mask & (mask - 1); m; m &= m - 1) {

@@ -8,6 +8,8 @@
 //             (one engine only, for perf)
 //   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
 //             (default tree against one built with those options, same traversal, alternating)
+//   bench_bvh --mode ab --ab-base avx2-kernel ...
+//             (the default tree traced by the AVX2 BVH8 kernel against the default (AVX-512) kernel)
 //
 // Both engines trace exactly the same ray arrays, chunked over TBB
 // parallel_for inside a task_arena of the given thread count. Every figure is
@@ -28,9 +30,13 @@
 #include <string>
 #include <vector>
 
+#include "core/bvh8.h"
 #include "core/mesh.h"
 #include "core/simd.h"
 #include "io/mesh_file.h"
+#ifdef TESSERA_BVH_COUNTERS
+#include "core/simd_tri4.h"
+#endif
 
 using namespace tessera;
 
@@ -456,6 +462,17 @@ void trace_only(const Config& cfg) {
         }));
       std::printf("%s %s %s %.3f Mrays/s\n", basename_of(path).c_str(), rays.kind.c_str(), cfg.engine.c_str(),
                   rays.size() / median(st) * 1e-6);
+#ifdef TESSERA_BVH_COUNTERS
+      {  // per ray over all passes; node visits by number of children hit
+        WideCounters& c = g_wide_counters;
+        const double n = double(c.rays);
+        std::printf("  per ray: nodes %.2f, children hit %.2f, leaves %.2f, blocks %.2f, sign pass %.2f, t pass %.2f\n  visits by hits:",
+                    c.nodes / n, c.hits_children / n, c.leaves / n, c.blocks / n, c.sign_pass / n, c.t_pass / n);
+        for (int k = 0; k <= 8; ++k) std::printf(" %d:%.1f%%", k, 100.0 * c.hit_hist[k] / double(c.nodes));
+        std::printf("\n");
+        c = WideCounters{};
+      }
+#endif
 
       std::fflush(stdout);
     }
@@ -476,6 +493,9 @@ void ab(const Config& cfg) {
     if (cfg.ab_base.find("no-collapse") != std::string::npos) base_opt.collapse_small_subtrees = false;
     if (cfg.ab_base.find("separate-leaves") != std::string::npos) base_opt.leaves_next_to_parent = false;
     const Mesh base = tessera_build(soup, base_opt);
+    // avx2-kernel: the base passes run the AVX2 BVH8 traversal instead of the AVX-512 one.
+    const bool new_kernel = g_bvh8_avx512;
+    const bool base_kernel = cfg.ab_base.find("avx2-kernel") != std::string::npos ? false : new_kernel;
     auto nodes = [](const Mesh& m) { return m.width() == 8 ? m.bvh8.num_nodes : m.bvh.num_nodes; };
     auto blocks = [](const Mesh& m) { return m.width() == 8 ? m.bvh8.num_blocks : m.bvh.num_blocks; };
     auto wide_sah = [](const Mesh& m) { return m.width() == 8 ? sah_cost(m.bvh8) : sah_cost(m.bvh); };
@@ -490,18 +510,22 @@ void ab(const Config& cfg) {
       b.t.assign(rays.size(), -1.0f);
       std::vector<double> sa, sb, ratio;
       for (int r = 0; r < cfg.runs; ++r) {
+        g_bvh8_avx512 = base_kernel;
         sb.push_back(run_parallel(1, rays.size(), [&](size_t i0, size_t i1) {
           tessera_trace(base, rays, i0, i1, b, TraversalOrder::Ordered);
         }));
+        g_bvh8_avx512 = new_kernel;
         sa.push_back(run_parallel(1, rays.size(), [&](size_t i0, size_t i1) {
           tessera_trace(mesh, rays, i0, i1, a, TraversalOrder::Ordered);
         }));
         ratio.push_back(sb.back() / sa.back());
       }
-      size_t bad = 0;
+      size_t bad = 0, inexact = 0;
       agreement(a, b, &bad);
-      std::printf("%-20s %-8s base %6.2f new %6.2f Mrays/s  new/base %.3f  (%zu differ)\n", basename_of(path).c_str(),
-                  rays.kind.c_str(), rays.size() / median(sb) * 1e-6, rays.size() / median(sa) * 1e-6, median(ratio), bad);
+      for (size_t i = 0; i < rays.size(); ++i) inexact += std::memcmp(&a.t[i], &b.t[i], sizeof(float)) != 0;
+      std::printf("%-20s %-8s base %6.2f new %6.2f Mrays/s  new/base %.3f  (%zu differ, %zu not bit-identical)\n",
+                  basename_of(path).c_str(), rays.kind.c_str(), rays.size() / median(sb) * 1e-6,
+                  rays.size() / median(sa) * 1e-6, median(ratio), bad, inexact);
       std::fflush(stdout);
     }
   }

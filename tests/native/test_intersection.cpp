@@ -5,6 +5,7 @@
 #include <random>
 
 #include "core/aabb.h"
+#include "core/bvh8.h"
 #include "core/mesh.h"
 #include "core/simd.h"
 #include "core/traverse.h"
@@ -119,9 +120,13 @@ TEST(Triangle, MeshGridHasNoCracksThroughSimdPath) {
   in.num_vertices = pos.size() / 3;
   in.indices = idx.data();
   in.num_triangles = idx.size() / 3;
-  std::vector<int> widths{4};
-  if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back(8);  // the AVX2 BVH8 path too
-  for (int width : widths) {
+  // Width 4 (SSE2), 8 with the AVX2 kernel, 8 with the AVX-512 kernel.
+  std::vector<std::pair<int, bool>> widths{{4, false}};
+  if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back({8, false});
+  if (cpu_has_avx512()) widths.push_back({8, true});
+  const bool saved_kernel = g_bvh8_avx512;
+  for (auto [width, avx512] : widths) {
+  g_bvh8_avx512 = avx512;
   BuildOptions opt;
   opt.bvh_width = width;
   Mesh mesh = build_mesh(in, opt);
@@ -147,9 +152,10 @@ TEST(Triangle, MeshGridHasNoCracksThroughSimdPath) {
       }
     }
   EXPECT_GT(tests, 500);
-  EXPECT_EQ(misses, 0) << "width " << width;
-  EXPECT_EQ(occl_disagree, 0) << "width " << width;
+  EXPECT_EQ(misses, 0) << "width " << width << (avx512 ? " avx512" : "");
+  EXPECT_EQ(occl_disagree, 0) << "width " << width << (avx512 ? " avx512" : "");
   }
+  g_bvh8_avx512 = saved_kernel;
 }
 
 // The SIMD path gives bit-identical results to the scalar test.
@@ -177,6 +183,105 @@ TEST(Triangle, SimdMeshHitsEqualScalarTest) {
     ASSERT_TRUE(intersect_mesh(mesh, o, dir, tmax, mh)) << i;
     EXPECT_EQ(mh.t, t_ref) << i;
   }
+}
+
+namespace {
+// 4000 small random triangles in [-1, 1]^3 and two exactly planar squares at
+// z = 0.5 (rays graze their faces and edges).
+MeshInput random_soup(std::vector<float>& pos, std::vector<uint32_t>& idx) {
+  std::mt19937 rng(77);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 4000; ++i) {
+    vec3 c(u(rng), u(rng), u(rng));
+    for (int k = 0; k < 3; ++k) {
+      vec3 p = c + 0.08f * vec3(u(rng), u(rng), u(rng));
+      pos.insert(pos.end(), {p.x, p.y, p.z});
+      idx.push_back(uint32_t(3 * i + k));
+    }
+  }
+  const float q[] = {-1, -1, 0.5f, 1, -1, 0.5f, 1, 1, 0.5f, -1, 1, 0.5f};
+  const uint32_t base = uint32_t(pos.size() / 3);
+  pos.insert(pos.end(), q, q + 12);
+  idx.insert(idx.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  MeshInput in;
+  in.positions = pos.data();
+  in.num_vertices = pos.size() / 3;
+  in.indices = idx.data();
+  in.num_triangles = idx.size() / 3;
+  return in;
+}
+}  // namespace
+
+// The AVX-512 BVH8 kernel (mask-register node test, sorting-network child
+// order, compress-store pushes) gives exactly the AVX2 kernel's closest hits
+// (t, u, v, triangle: same visiting order, so ties go the same way) and
+// any-hit answers, and its distances are the scalar test's nearest hit.
+TEST(Triangle, Bvh8Avx512KernelEqualsAvx2Kernel) {
+  if (!cpu_has_avx512()) GTEST_SKIP() << "no AVX-512 on this CPU (or TESSERA_SIMD set)";
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+  const MeshInput in = random_soup(pos, idx);
+  BuildOptions o8;
+  o8.bvh_width = 8;
+  const Mesh m = build_mesh(in, o8);
+  ASSERT_EQ(m.width(), 8);
+  std::mt19937 rng(91);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const bool saved_kernel = g_bvh8_avx512;
+  int hits = 0, multi = 0;
+  for (int i = 0; i < 200000; ++i) {
+    vec3 o(1.5f * u(rng), 1.5f * u(rng), 1.5f * u(rng));
+    vec3 d(u(rng), u(rng), u(rng));
+    if (i % 5 == 0) d = vec3(0.0f, 0.0f, d.z);  // axis-parallel rays
+    if (i % 7 == 0) o.z = 0.5f;                 // origins on the plane
+    if (i % 11 == 0) o = vec3(0.0f);            // many children at tnear = 0
+    if (glm::length(d) == 0.0f) continue;
+    for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+      float t2 = kInf, t5 = kInf;
+      MeshHit h2, h5;
+      g_bvh8_avx512 = false;
+      const bool f2 = intersect_mesh(m, o, d, t2, h2, order);
+      g_bvh8_avx512 = true;
+      const bool f5 = intersect_mesh(m, o, d, t5, h5, order);
+      ASSERT_EQ(f2, f5) << i;
+      if (f2) {
+        ASSERT_EQ(h2.t, h5.t) << i;
+        ASSERT_EQ(h2.u, h5.u) << i;
+        ASSERT_EQ(h2.v, h5.v) << i;
+        ASSERT_EQ(h2.prim, h5.prim) << i;
+        hits += order == TraversalOrder::Ordered;
+      }
+    }
+    for (float tmax : {kInf, 0.3f}) {
+      g_bvh8_avx512 = false;
+      const bool a = occluded_mesh(m, o, d, tmax);
+      g_bvh8_avx512 = true;
+      ASSERT_EQ(a, occluded_mesh(m, o, d, tmax)) << i;
+    }
+    if (i % 100 == 0) {
+      // Against the scalar test over every triangle.
+      const RayShear sh(d);
+      float t_ref = kInf;
+      int n_hit = 0;
+      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+        TriangleHit th;
+        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th)) {
+          t_ref = th.t;
+          ++n_hit;
+        }
+      }
+      float t5 = kInf;
+      MeshHit h5;
+      g_bvh8_avx512 = true;
+      const bool f5 = intersect_mesh(m, o, d, t5, h5);
+      ASSERT_EQ(f5, t_ref != kInf) << i;
+      if (f5) ASSERT_EQ(h5.t, t_ref) << i;
+      multi += n_hit > 1;
+    }
+  }
+  g_bvh8_avx512 = saved_kernel;
+  EXPECT_GT(hits, 10000);
+  EXPECT_GT(multi, 10);
 }
 
 // The AVX2 BVH8 (eight-wide nodes) and the SSE2 BVH4 give bit-identical

@@ -1,0 +1,304 @@
+// BVH8 traversal compiled for AVX-512 (F, VL, DQ, BW), chosen at run time
+// over the AVX2 one (bvh8_avx2.cpp) when the CPU has it: same tree, same
+// per-lane arithmetic, same visiting order, so hits are bit for bit those of
+// the AVX2 and SSE2 paths. What AVX-512 changes:
+// - the node test's compare lands in a mask register (no movemask) and the
+//   entry distances stay in a register;
+// - closest hit orders the hit children with a sorting network in one zmm
+//   (Embree's in-register sort) instead of an insertion sort with a
+//   mispredicted branch per child: 64-bit keys (tnear bits << 32 | lane) give
+//   exactly the insertion sort's order (nearest first, equal distances by
+//   lane), and the sorted keys, with each lane replaced by its child reference,
+//   are the stack entries themselves: one 64-byte store pushes them all;
+// - any hit pushes the hit children with one compress (vpcompressd) and store.
+// Headers come before the target pragma (see bvh8_avx2.cpp). AVX-512F makes
+// GCC contract a * b + c into FMA (even across intrinsics), which would
+// change the rounding: fp-contract is off for everything below.
+#include <immintrin.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "bvh8.h"
+#include "triangle.h"
+
+#pragma GCC push_options
+#pragma GCC target("avx2,avx512f,avx512vl,avx512dq,avx512bw")
+#pragma GCC optimize("fp-contract=off")
+// GCC 12's AVX-512 intrinsics trip -Wmaybe-uninitialized (their
+// _mm512_undefined sources); zmm values never cross a non-inline call here.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+#include "simd_tri4.h"
+#include "wide_traverse.h"
+
+namespace tessera {
+namespace {
+
+struct Ray8x {
+  __m256 org_near[3], org_far[3], inv[3], inv_far[3];
+  __m256 tmax8_far;  // tmax widened as the far planes
+  __m128 tmax4;
+  int near_lo[3];
+  TriRay4 tri;
+
+  // As Ray8 in bvh8_avx2.cpp.
+  Ray8x(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
+    for (int i = 0; i < 3; ++i) {
+      float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
+      float inv_i = 1.0f / di;
+      inv[i] = _mm256_set1_ps(inv_i);
+      inv_far[i] = _mm256_set1_ps(widen_far(inv_i));
+      near_lo[i] = int(!(inv_i >= 0.0f));
+      const float delta = parallel_axis_delta(origin[i], d[i]);
+      const float signed_delta = flip_sign(delta, near_lo[i]);
+      org_near[i] = _mm256_set1_ps(origin[i] + signed_delta);
+      org_far[i] = _mm256_set1_ps(origin[i] - signed_delta);
+    }
+    set_tmax(t_max);
+  }
+  void set_tmax(float t) {
+    tmax8_far = _mm256_set1_ps(widen_far(t));
+    tmax4 = _mm_set1_ps(t);
+  }
+};
+
+// intersect_node8 (bvh8_avx2.cpp) with the final compare into a mask
+// register; tnear (as integers, >= +0 on hit lanes) in `near`.
+inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& near) {
+  const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
+  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
+  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
+  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
+  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
+  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
+  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
+  const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
+  const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
+  near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));
+  const __m256i far = _mm256_min_epi32(_mm256_min_epi32(ifx, ify), _mm256_min_epi32(ifz, _mm256_castps_si256(r.tmax8_far)));
+  return _mm256_cmple_epi32_mask(near, far);
+}
+
+// Lanes that keep the larger of the pair in bitonic step (k, j) of a
+// descending sort (Batcher's bitonic network, lane i paired with i ^ j).
+constexpr __mmask8 bitonic_max_lanes(int k, int j) {
+  int m = 0;
+  for (int i = 0; i < 8; ++i)
+    if (((i & j) == 0) == ((i & k) == 0)) m |= 1 << i;
+  return __mmask8(m);
+}
+
+inline __m512i bitonic_step(__m512i v, __m512i partner, __mmask8 take_max) {
+  return _mm512_mask_max_epu64(_mm512_min_epu64(v, partner), take_max, v, partner);
+}
+
+// Eight unsigned 64-bit keys sorted descending, in registers (six steps).
+inline __m512i sort8_desc(__m512i v) {
+  auto swap1 = [](__m512i x) { return _mm512_shuffle_epi32(x, _MM_PERM_ENUM(0x4E)); };  // i ^ 1
+  auto swap2 = [](__m512i x) { return _mm512_permutex_epi64(x, 0x4E); };                 // i ^ 2
+  auto swap4 = [](__m512i x) { return _mm512_shuffle_i64x2(x, x, 0x4E); };              // i ^ 4
+  v = bitonic_step(v, swap1(v), bitonic_max_lanes(2, 1));
+  v = bitonic_step(v, swap2(v), bitonic_max_lanes(4, 2));
+  v = bitonic_step(v, swap1(v), bitonic_max_lanes(4, 1));
+  v = bitonic_step(v, swap4(v), bitonic_max_lanes(8, 4));
+  v = bitonic_step(v, swap2(v), bitonic_max_lanes(8, 2));
+  v = bitonic_step(v, swap1(v), bitonic_max_lanes(8, 1));
+  return v;
+}
+
+constexpr int kStackSize = 512;
+
+inline void prefetch_node(const char* base, uint32_t ref) {
+  const char* p = base + size_t(ref) * kNodeUnit;
+  _mm_prefetch(p, _MM_HINT_T0);
+  _mm_prefetch(p + 64, _MM_HINT_T0);
+  _mm_prefetch(p + 128, _MM_HINT_T0);
+  _mm_prefetch(p + 192, _MM_HINT_T0);
+}
+
+// The leaf loop of wide_intersect (wide_traverse.h).
+inline bool leaf_intersect(const char* base, uint32_t ref, Ray8x& ray, float& t_best, BVH4Hit& hit) {
+  const Tri4* tris = wide_leaf(base, ref);
+  WC(leaves);
+  const uint32_t blocks = bvh4_leaf_blocks(ref);
+  bool found = false;
+  for (uint32_t b = 0; b < blocks; ++b) {
+    WC(blocks);
+    __m128 t, u, v;
+    const int mask = intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v);
+    if (mask == 0) continue;
+    alignas(16) float ts[4], us[4], vs[4];
+    _mm_store_ps(ts, t);
+    _mm_store_ps(us, u);
+    _mm_store_ps(vs, v);
+    // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
+    int best = -1;
+    for (int m = mask; m; m &= m - 1) {
+      const int lane = __builtin_ctz(m);
+      if (best < 0 || ts[lane] < ts[best]) best = lane;
+    }
+    t_best = ts[best];
+    hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
+    ray.set_tmax(t_best);
+    found = true;
+  }
+  return found;
+}
+
+template <bool kOrdered>
+bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
+  // Eight entries of slack: pushes store all eight lanes of a zmm.
+  alignas(64) WideStackEntry stack[kStackSize + 8];
+  static_assert(sizeof(WideStackEntry) == 8, "stack entries are one 64-bit lane: {ref, t} little-endian");
+  int sp = 0;
+  uint32_t ref = 0;
+  bool found = false;
+  float t_best = tmax;
+  const __m512i lane_ids = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const BVH8Node& n = wide_node<BVH8Node>(base, ref);
+      WC(nodes);
+      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
+      __m256i tnear;
+      const unsigned mask = intersect_node8x(n, ray, tnear);
+      WCN(hits_children, __builtin_popcount(mask));
+      WCH(__builtin_popcount(mask));
+      if (mask != 0) {
+        const unsigned rest = mask & (mask - 1);
+        if (rest == 0) {  // one child hit: descend without the stack
+          ref = n.child[__builtin_ctz(mask)];
+          continue;
+        }
+        for (unsigned m = mask; m; m &= m - 1) {
+          const uint32_t c = n.child[__builtin_ctz(m)];
+          if (!bvh4_is_leaf(c)) prefetch_node(base, c);
+        }
+        if (!kOrdered) {
+          // Stored order: push the others in reverse, descend into the first.
+          alignas(32) float dist[8];
+          _mm256_store_si256(reinterpret_cast<__m256i*>(dist), tnear);
+          int lanes[8], k = 0;
+          for (unsigned m = rest; m; m &= m - 1) lanes[k++] = __builtin_ctz(m);
+          for (int j = k - 1; j >= 0; --j) stack[sp++] = {n.child[lanes[j]], dist[lanes[j]]};
+          ref = n.child[__builtin_ctz(mask)];
+          continue;
+        }
+        if ((rest & (rest - 1)) == 0) {
+          // Two children hit: the nearer (the lower lane on a tie) first, by
+          // conditional moves instead of a branch.
+          alignas(32) uint32_t dist[8];
+          _mm256_store_si256(reinterpret_cast<__m256i*>(dist), tnear);
+          const int a = __builtin_ctz(mask), b = __builtin_ctz(rest);
+          const uint32_t ra = n.child[a], rb = n.child[b], da = dist[a], db = dist[b];
+          const bool swap = db < da;
+          stack[sp].ref = swap ? ra : rb;
+          reinterpret_cast<uint32_t*>(stack)[2 * sp + 1] = swap ? da : db;
+          ++sp;
+          ref = swap ? rb : ra;
+          continue;
+        }
+        // Keys tnear << 32 | lane on hit lanes, 0 elsewhere (sorted last);
+        // descending, the nearest hit child is key h - 1.
+        __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepu32_epi64(tnear), 32), lane_ids);
+        key = sort8_desc(_mm512_maskz_mov_epi64(__mmask8(mask), key));
+        // Low half of each key: its lane's child reference (vpermq reads the
+        // lane from the key's low three bits).
+        const __m512i refs = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child)));
+        const __m512i entries = _mm512_mask_blend_epi32(0x5555, key, _mm512_permutexvar_epi64(key, refs));
+        _mm512_storeu_si512(stack + sp, entries);
+        const int last = __builtin_popcount(mask) - 1;
+        ref = uint32_t(_mm_cvtsi128_si32(_mm512_castsi512_si128(
+            _mm512_permutexvar_epi64(_mm512_set1_epi64(last), entries))));
+        sp += last;
+        continue;
+      }
+    } else if (leaf_intersect(base, ref, ray, t_best, hit)) {
+      found = true;
+    }
+    // Pop, skipping entries farther than the nearest hit so far.
+    for (;;) {
+      if (sp == 0) {
+        tmax = t_best;
+        return found;
+      }
+      --sp;
+      if (stack[sp].t <= t_best) break;
+    }
+    ref = stack[sp].ref;
+  }
+}
+
+bool occluded8x(const char* base, Ray8x& ray) {
+  alignas(32) uint32_t stack[kStackSize + 8];
+  int sp = 0;
+  uint32_t ref = 0;
+  for (;;) {
+    if (!bvh4_is_leaf(ref)) {
+      const BVH8Node& n = wide_node<BVH8Node>(base, ref);
+      WC(nodes);
+      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
+      __m256i tnear;
+      const unsigned mask = intersect_node8x(n, ray, tnear);
+      WCN(hits_children, __builtin_popcount(mask));
+      WCH(__builtin_popcount(mask));
+      if (mask != 0) {
+        const unsigned rest = mask & (mask - 1);
+        if (rest) {
+          // Push the other hit children in lane order (the last on top), as
+          // wide_occluded does, with one compress and store.
+          const __m256i refs = _mm256_load_si256(reinterpret_cast<const __m256i*>(n.child));
+          _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + sp), _mm256_maskz_compress_epi32(__mmask8(rest), refs));
+          sp += __builtin_popcount(rest);
+          // Any-hit visits every pushed node unless it stops: fetch them now.
+          for (unsigned m = rest; m; m &= m - 1) {
+            const uint32_t c = n.child[__builtin_ctz(m)];
+            if (!bvh4_is_leaf(c)) prefetch_node(base, c);
+          }
+        }
+        ref = n.child[__builtin_ctz(mask)];
+        continue;
+      }
+    } else {
+      const Tri4* tris = wide_leaf(base, ref);
+      WC(leaves);
+      const uint32_t blocks = bvh4_leaf_blocks(ref);
+      for (uint32_t b = 0; b < blocks; ++b) {
+        WC(blocks);
+        __m128 t, u, v;
+        if (intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v)) return true;
+      }
+    }
+    if (sp == 0) return false;
+    ref = stack[--sp];
+  }
+}
+
+}  // namespace
+
+template <bool kOrdered>
+bool bvh8_intersect_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
+  if (bvh.empty()) return false;
+  WC(rays);
+  Ray8x ray(o, d, tmax);
+  return intersect8x<kOrdered>(bvh.base(), ray, tmax, hit);
+}
+
+template bool bvh8_intersect_avx512<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
+template bool bvh8_intersect_avx512<false>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
+
+bool bvh8_occluded_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
+  if (bvh.empty()) return false;
+  WC(rays);
+  Ray8x ray(o, d, tmax);
+  return occluded8x(bvh.base(), ray);
+}
+
+}  // namespace tessera
+
+#pragma GCC diagnostic pop
+#pragma GCC pop_options
