@@ -176,11 +176,11 @@ void Scene::commit() {
   light_sampler_.build(lights, collect_emissive_triangles(), &background, std::max(radius, 1e-6f));
 }
 
+// One TLAS item: the merged triangles, or an instance's mesh with the ray
+// in its object space. Closest hit: shrinks tmax and fills hit.
 template <bool kAnyHit>
-bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
-  if (tlas_.nodes.empty()) return false;
-  // The merged triangles of a scene without instancing: no TLAS to walk.
-  if (tlas_items_.size() == 1 && tlas_items_[0] == kMergedItem) {
+bool Scene::trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, Hit* hit) const {
+  if (id == kMergedItem) {
     if (kAnyHit) return occluded_mesh(merged_, o, d, tmax);
     MeshHit mh;
     if (!intersect_mesh(merged_, o, d, tmax, mh)) return false;
@@ -188,41 +188,35 @@ bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
     *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim};
     return true;
   }
+  const Instance& inst = instances[id];
+  const Mesh& mesh = meshes[inst.mesh];
+  vec3 lo = o, ld = d;
+  if (!inst.identity) {
+    lo = vec3(inst.to_local * vec4(o, 1.0f));
+    ld = glm::mat3(inst.to_local) * d;
+    // A finite transform can have a non-finite inverse: such an instance is not hit.
+    if (!is_finite(lo) || !is_finite(ld)) return false;
+  }
+  if (kAnyHit) return occluded_mesh(mesh, lo, ld, tmax);
+  MeshHit mh;
+  if (!intersect_mesh(mesh, lo, ld, tmax, mh)) return false;
+  *hit = {mh.t, mh.u, mh.v, id, mh.prim};
+  return true;
+}
+
+template <bool kAnyHit>
+bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
+  if (tlas_.nodes.empty()) return false;
+  // One item (the merged triangles of a scene without instancing, or a lone
+  // instance): its BLAS's root test is the TLAS's, skip the walk.
+  if (tlas_items_.size() == 1) return trace_item<kAnyHit>(tlas_items_[0], o, d, tmax, hit);
   TraversalRay ray(o, d, tmax);
   return traverse<kAnyHit>(tlas_.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
     bool any = false;
     for (uint32_t k = first; k < first + count; ++k) {
-      const uint32_t id = tlas_items_[tlas_.prim_order[k]];
-      if (id == kMergedItem) {
-        if (kAnyHit) {
-          if (occluded_mesh(merged_, r.o, r.d, r.tmax)) return true;
-        } else {
-          MeshHit mh;
-          if (intersect_mesh(merged_, r.o, r.d, r.tmax, mh)) {
-            const MergedOwner& owner = merged_owner_[mh.prim];
-            *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim};
-            any = true;
-          }
-        }
-        continue;
-      }
-      const Instance& inst = instances[id];
-      const Mesh& mesh = meshes[inst.mesh];
-      vec3 lo = r.o, ld = r.d;
-      if (!inst.identity) {
-        lo = vec3(inst.to_local * vec4(r.o, 1.0f));
-        ld = glm::mat3(inst.to_local) * r.d;
-        // A finite transform can have a non-finite inverse: such an instance is not hit.
-        if (!is_finite(lo) || !is_finite(ld)) continue;
-      }
-      if (kAnyHit) {
-        if (occluded_mesh(mesh, lo, ld, r.tmax)) return true;
-      } else {
-        MeshHit mh;
-        if (intersect_mesh(mesh, lo, ld, r.tmax, mh)) {
-          *hit = {mh.t, mh.u, mh.v, id, mh.prim};
-          any = true;
-        }
+      if (trace_item<kAnyHit>(tlas_items_[tlas_.prim_order[k]], r.o, r.d, r.tmax, hit)) {
+        if (kAnyHit) return true;
+        any = true;
       }
     }
     return any;

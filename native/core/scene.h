@@ -120,6 +120,8 @@ class Scene {
   void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
   template <bool kAnyHit>
   bool trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const;
+  template <bool kAnyHit>
+  bool trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, Hit* hit) const;
   // The TLAS's primitives: an instance index, or kMergedItem for merged_.
   static constexpr uint32_t kMergedItem = ~0u;
   BVH tlas_;
