@@ -4,6 +4,7 @@
 #include <numeric>
 
 #include <emmintrin.h>
+#include <tbb/parallel_invoke.h>
 
 namespace tessera {
 
@@ -217,7 +218,11 @@ struct LightBVH::Builder {
   std::vector<BinaryNode> binary;
   LightBVH& bvh;
 
-  uint32_t build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth);
+  // Builds the subtree over ids[begin, end) at binary[node]. A subtree of m
+  // lights has 2m - 1 nodes, so the left child is node + 1 and the right one
+  // node + 2 (mid - begin): both halves build as parallel tasks into their
+  // own ranges, and the tree does not depend on the thread count.
+  void build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth, uint32_t node);
   uint32_t collapse(uint32_t b, uint32_t parent, int parent_lane);
 };
 
@@ -230,21 +235,22 @@ void LightBVH::build(const std::vector<LightBounds>& lights) {
   if (ids.empty()) return;
   Builder builder{std::vector<BuildBounds>(lights.size()), {}, *this};
   for (uint32_t i : ids) builder.lights[i] = BuildBounds(lights[i]);
-  builder.binary.reserve(2 * ids.size());
-  builder.build_binary(ids, 0, ids.size(), 0);
+  builder.binary.resize(2 * ids.size() - 1);
+  builder.build_binary(ids, 0, ids.size(), 0, 0);
   nodes_.reserve(ids.size() / 2 + 1);
   builder.collapse(0, ~0u, 0);
 }
 
-uint32_t LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth) {
-  const uint32_t node = uint32_t(binary.size());
-  binary.emplace_back();
+void LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begin, size_t end, int depth, uint32_t node) {
   if (end - begin == 1) {
     binary[node].bounds = lights[ids[begin]];
     binary[node].leaf = true;
     binary[node].left = ids[begin];
-    return node;
+    return;
   }
+  // Large ranges: the three axes bin as parallel tasks, and the two halves build as parallel tasks.
+  constexpr size_t kParallelLights = 1024;
+  const bool parallel = end - begin >= kParallelLights;
   auto centre = [&](uint32_t id) { return lights[id].lb.bounds.center(); };
   AABB bounds, centroids;
   for (size_t i = begin; i < end; ++i) {
@@ -262,11 +268,11 @@ uint32_t LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begi
     // 12 mostly empty buckets on each axis was most of the build.
     constexpr int kMaxBuckets = 12;
     const int buckets = int(std::min<size_t>(kMaxBuckets, end - begin));
-    float best_cost = kInf;
-    int best_axis = -1, best_bucket = -1;
-    for (int axis = 0; axis < 3; ++axis) {
+    float axis_cost[3] = {kInf, kInf, kInf};
+    int axis_bucket[3] = {-1, -1, -1};
+    auto sweep = [&](int axis) {
       const float lo = centroids.lo[axis], ext = centroids.hi[axis] - lo;
-      if (!(ext > 0.0f)) continue;
+      if (!(ext > 0.0f)) return;
       BuildBounds bucket[kMaxBuckets];
       for (size_t i = begin; i < end; ++i) {
         const int b = bucket_index(centre(ids[i])[axis], lo, ext, buckets);
@@ -281,10 +287,19 @@ uint32_t LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begi
         below = union_bounds(below, bucket[b]);
         if (below.lb.phi <= 0.0f || above[b + 1].lb.phi <= 0.0f) continue;
         const float cost = saoh_cost(below, bounds, axis) + saoh_cost(above[b + 1], bounds, axis);
-        if (cost < best_cost) best_cost = cost, best_axis = axis, best_bucket = b;
+        if (cost < axis_cost[axis]) axis_cost[axis] = cost, axis_bucket[axis] = b;
       }
-    }
+    };
+    if (parallel)
+      tbb::parallel_invoke([&] { sweep(0); }, [&] { sweep(1); }, [&] { sweep(2); });
+    else
+      for (int axis = 0; axis < 3; ++axis) sweep(axis);
+    // The first axis with the lowest cost, as a serial sweep over the axes picks.
+    int best_axis = -1;
+    for (int axis = 0; axis < 3; ++axis)
+      if (axis_bucket[axis] >= 0 && (best_axis < 0 || axis_cost[axis] < axis_cost[best_axis])) best_axis = axis;
     if (best_axis >= 0) {
+      const int best_bucket = axis_bucket[best_axis];
       const float lo = centroids.lo[best_axis], ext = centroids.hi[best_axis] - lo;
       auto it = std::partition(ids.begin() + begin, ids.begin() + end, [&](uint32_t id) {
         return bucket_index(centre(id)[best_axis], lo, ext, buckets) <= best_bucket;
@@ -299,11 +314,14 @@ uint32_t LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begi
       return centre(a)[widest] < centre(b)[widest];
     });
   }
-  const uint32_t left = build_binary(ids, begin, mid, depth + 1);
-  const uint32_t right = build_binary(ids, mid, end, depth + 1);
+  const uint32_t left = node + 1, right = node + uint32_t(2 * (mid - begin));
+  if (parallel)
+    tbb::parallel_invoke([&] { build_binary(ids, begin, mid, depth + 1, left); },
+                         [&] { build_binary(ids, mid, end, depth + 1, right); });
+  else
+    build_binary(ids, begin, mid, depth + 1, left), build_binary(ids, mid, end, depth + 1, right);
   binary[node].left = left, binary[node].right = right;
   binary[node].bounds = union_bounds(binary[left].bounds, binary[right].bounds);
-  return node;
 }
 
 // One 4-wide node from binary node b: its two children, then the interior
