@@ -31,11 +31,18 @@ vec3 rotate(const vec3& v, const vec3& k, float theta) {
 struct BuildBounds {
   LightBounds lb;
   float theta_o = 0.0f, theta_e = kPi / 2;  // acos of lb.cos_theta_o, lb.cos_theta_e
+  float sin_theta_o = 0.0f;
 
   BuildBounds() = default;
   explicit BuildBounds(const LightBounds& b)
-      : lb(b), theta_o(safe_acos(b.cos_theta_o)), theta_e(safe_acos(b.cos_theta_e)) {}
+      : lb(b), theta_o(safe_acos(b.cos_theta_o)), theta_e(safe_acos(b.cos_theta_e)),
+        sin_theta_o(safe_sqrt(1.0f - b.cos_theta_o * b.cos_theta_o)) {}
 };
+
+// cos(a.theta_o - b.theta_o), for a.theta_o >= b.theta_o.
+inline float cos_difference(const BuildBounds& a, const BuildBounds& b) {
+  return a.lb.cos_theta_o * b.lb.cos_theta_o + a.sin_theta_o * b.sin_theta_o;
+}
 
 // Smallest bounds holding a and b: box, power, and the smallest cone holding
 // both cones of normals (pbrt-v4 DirectionCone Union).
@@ -51,20 +58,35 @@ BuildBounds union_bounds(const BuildBounds& a, const BuildBounds& b) {
   u.theta_e = std::max(a.theta_e, b.theta_e);
   const float theta_a = a.theta_o, theta_b = b.theta_o;
   const vec3 &wa = a.lb.w, &wb = b.lb.w;
-  const float theta_d = glm::dot(wa, wb) < 0.0f ? kPi - 2.0f * std::asin(std::min(1.0f, glm::length(wa + wb) / 2.0f))
+  // Cheap answers first (the build's buckets soon hold wide cones, which
+  // most further lights fall inside): a whole-sphere cone holds anything,
+  // and the wider cone holds the other when the angle between the axes is at
+  // most the difference of their angles, compared by cosines (a margin
+  // leaves the close cases to the exact test below).
+  const float cos_d = glm::dot(wa, wb);
+  if (theta_a >= kPi || (theta_a >= theta_b && cos_d >= cos_difference(a, b) + 1e-5f)) {
+    u.lb.w = wa, u.lb.cos_theta_o = a.lb.cos_theta_o, u.theta_o = theta_a, u.sin_theta_o = a.sin_theta_o;
+    return u;
+  }
+  if (theta_b >= kPi || (theta_b >= theta_a && cos_d >= cos_difference(b, a) + 1e-5f)) {
+    u.lb.w = wb, u.lb.cos_theta_o = b.lb.cos_theta_o, u.theta_o = theta_b, u.sin_theta_o = b.sin_theta_o;
+    return u;
+  }
+  const float theta_d = cos_d < 0.0f ? kPi - 2.0f * std::asin(std::min(1.0f, glm::length(wa + wb) / 2.0f))
                                                 : 2.0f * std::asin(std::min(1.0f, glm::length(wb - wa) / 2.0f));
   if (std::min(theta_d + theta_b, kPi) <= theta_a) {
-    u.lb.w = wa, u.lb.cos_theta_o = a.lb.cos_theta_o, u.theta_o = theta_a;
+    u.lb.w = wa, u.lb.cos_theta_o = a.lb.cos_theta_o, u.theta_o = theta_a, u.sin_theta_o = a.sin_theta_o;
   } else if (std::min(theta_d + theta_a, kPi) <= theta_b) {
-    u.lb.w = wb, u.lb.cos_theta_o = b.lb.cos_theta_o, u.theta_o = theta_b;
+    u.lb.w = wb, u.lb.cos_theta_o = b.lb.cos_theta_o, u.theta_o = theta_b, u.sin_theta_o = b.sin_theta_o;
   } else {
     const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
     const vec3 axis = glm::cross(wa, wb);
     if (theta_o >= kPi || glm::dot(axis, axis) == 0.0f) {
-      u.lb.w = wa, u.lb.cos_theta_o = -1.0f, u.theta_o = kPi;  // the whole sphere
+      u.lb.w = wa, u.lb.cos_theta_o = -1.0f, u.theta_o = kPi, u.sin_theta_o = 0.0f;  // the whole sphere
     } else {
       u.lb.w = glm::normalize(rotate(wa, glm::normalize(axis), theta_o - theta_a));
       u.lb.cos_theta_o = std::cos(theta_o);
+      u.sin_theta_o = std::sin(theta_o);
       u.theta_o = theta_o;
     }
   }
@@ -75,7 +97,7 @@ BuildBounds union_bounds(const BuildBounds& a, const BuildBounds& b) {
 // emission spread theta_e can emit into (Conty Estevez and Kulla 2018, eq. 1).
 float m_omega(const BuildBounds& b) {
   const float theta_o = b.theta_o, theta_w = std::min(theta_o + b.theta_e, kPi);
-  const float cos_o = b.lb.cos_theta_o, sin_o = std::sin(theta_o);
+  const float cos_o = b.lb.cos_theta_o, sin_o = b.sin_theta_o;
   return 2.0f * kPi * (1.0f - cos_o) +
          0.5f * kPi * (2.0f * theta_w * sin_o - std::cos(theta_o - 2.0f * theta_w) - 2.0f * theta_o * sin_o + cos_o);
 }
