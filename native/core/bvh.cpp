@@ -249,7 +249,7 @@ struct Bins {
       _mm_store_si128(reinterpret_cast<__m128i*>(count[b]), _mm_setzero_si128());
     }
   }
-  void grow(int a, int b, __m128 l, __m128 h) {
+  void grow(int a, uint32_t b, __m128 l, __m128 h) {
     lo[b][a] = _mm_min_ps(lo[b][a], l);
     hi[b][a] = _mm_max_ps(hi[b][a], h);
     count[b][a]++;
@@ -275,7 +275,8 @@ inline __m128 half_areas3(const SSEBox* b) {
 
 struct FastBuilder {
   const BuildOptions& opt;
-  std::vector<PrimRef> refs;
+  std::unique_ptr<PrimRef[]> refs;  // uninitialised: every one is written before it is read
+  uint32_t num_refs = 0;
   // Scatter buffer of the parallel partitions, allocated once per build
   // (uninitialised): concurrent partitions work on disjoint [begin, end).
   std::unique_ptr<PrimRef[]> scratch;
@@ -296,25 +297,25 @@ struct FastBuilder {
 
   // Bin indices of a reference on the three axes (centroids are handled
   // doubled, lo + hi, throughout), clamped to [0, maxb].
-  static __m128i bin_of(const PrimRef& r, __m128 cmin, __m128 scale, __m128i maxb) {
-    __m128i b = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(centroid2(r), cmin), scale));
-    b = _mm_and_si128(b, _mm_cmpgt_epi32(b, _mm_setzero_si128()));  // min(max(b, 0), nb - 1) with SSE2
-    const __m128i gt = _mm_cmpgt_epi32(b, maxb);
-    return _mm_or_si128(_mm_and_si128(gt, maxb), _mm_andnot_si128(gt, b));
+  // The clamp is on the float (two operations instead of SSE2's six for
+  // integers); the bin counts and boxes are the same.
+  static __m128i bin_of(const PrimRef& r, __m128 cmin, __m128 scale, __m128 maxb) {
+    const __m128 x = _mm_mul_ps(_mm_sub_ps(centroid2(r), cmin), scale);
+    return _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(x, _mm_setzero_ps()), maxb));
   }
 
-  static void bin_one(Bins& bins, const PrimRef& r, __m128 cmin, __m128 scale, __m128i maxb) {
+  static void bin_one(Bins& bins, const PrimRef& r, __m128 cmin, __m128 scale, __m128 maxb) {
     const __m128i b = bin_of(r, cmin, scale, maxb);
     const __m128 l = lo_of(r);
-    bins.grow(0, _mm_cvtsi128_si32(b), l, r.hi);
-    bins.grow(1, _mm_cvtsi128_si32(_mm_shuffle_epi32(b, 1)), l, r.hi);
-    bins.grow(2, _mm_cvtsi128_si32(_mm_shuffle_epi32(b, 2)), l, r.hi);
+    bins.grow(0, uint32_t(_mm_cvtsi128_si32(b)), l, r.hi);
+    bins.grow(1, uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(b, 1))), l, r.hi);
+    bins.grow(2, uint32_t(_mm_cvtsi128_si32(_mm_shuffle_epi32(b, 2))), l, r.hi);
   }
   // Neighbouring references mostly fall into the same bin, so every update
   // waits for the previous one's store; large ranges alternate between two
   // bin sets to halve that chain, then merge them.
   void bin_range(Bins& bins, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
-    const __m128i maxb = _mm_set1_epi32(bins.n - 1);
+    const __m128 maxb = _mm_set1_ps(float(bins.n - 1));
     uint32_t i = begin;
     if (end - begin >= 256) {
       Bins odd(bins.n);
@@ -329,8 +330,8 @@ struct FastBuilder {
 
   Split find_split(uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out, __m128& scale_out) const {
     Split best;
-    const __m128 cmin = _mm_add_ps(cbox.lo, cbox.lo);
-    const __m128 ext = _mm_sub_ps(_mm_add_ps(cbox.hi, cbox.hi), cmin);
+    const __m128 cmin = cbox.lo;  // centroid boxes are doubled (centroid2) throughout
+    const __m128 ext = _mm_sub_ps(cbox.hi, cmin);
     alignas(16) float e[4];
     _mm_store_ps(e, ext);
     const uint32_t n = end - begin;
@@ -418,12 +419,11 @@ struct FastBuilder {
       SSEBox lb, rb, lcb, rcb;
     };
     std::vector<Part> parts(nblocks);
-    const __m128 half = _mm_set1_ps(0.5f);
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       Part& p = parts[k];
       const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
       for (uint32_t i = b0; i < b1; ++i) {
-        const __m128 c = _mm_mul_ps(centroid2(refs[i]), half);
+        const __m128 c = centroid2(refs[i]);
         if (left_of(refs[i])) {
           ++p.left;
           p.lb.grow(lo_of(refs[i]), refs[i].hi);
@@ -454,7 +454,7 @@ struct FastBuilder {
     });
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       const uint32_t b0 = k * kPartitionBlock, b1 = std::min(n, b0 + kPartitionBlock);
-      std::copy(tmp + b0, tmp + b1, refs.begin() + begin + b0);
+      std::copy(tmp + b0, tmp + b1, refs.get() + begin + b0);
     });
     return begin + total_left;
   }
@@ -501,14 +501,14 @@ struct FastBuilder {
         for (;;) {
           while (i < j && left_of(refs[i])) {
             lbox.grow(lo_of(refs[i]), refs[i].hi);
-            const __m128 c = _mm_mul_ps(centroid2(refs[i]), _mm_set1_ps(0.5f));
+            const __m128 c = centroid2(refs[i]);
             lcbox.grow(c, c);
             ++i;
           }
           while (i < j && !left_of(refs[j - 1])) {
             --j;
             rbox.grow(lo_of(refs[j]), refs[j].hi);
-            const __m128 c = _mm_mul_ps(centroid2(refs[j]), _mm_set1_ps(0.5f));
+            const __m128 c = centroid2(refs[j]);
             rcbox.grow(c, c);
           }
           if (i >= j) break;
@@ -526,7 +526,7 @@ struct FastBuilder {
     if (!have_boxes) {
       lbox = rbox = lcbox = rcbox = SSEBox{};
       for (uint32_t i = begin; i < end; ++i) {
-        const __m128 c = _mm_mul_ps(centroid2(refs[i]), _mm_set1_ps(0.5f));
+        const __m128 c = centroid2(refs[i]);
         if (i < mid) lbox.grow(lo_of(refs[i]), refs[i].hi), lcbox.grow(c, c);
         else rbox.grow(lo_of(refs[i]), refs[i].hi), rcbox.grow(c, c);
       }
@@ -546,32 +546,68 @@ struct FastBuilder {
 
 BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& options) {
   FastBuilder b(options);
-  b.refs.reserve(prim_bounds.size());
-  SSEBox box, cbox;
-  for (uint32_t i = 0; i < prim_bounds.size(); ++i) {
+  // References of the valid boxes, in input order: blocks count theirs, a
+  // prefix sum places them (in parallel when allowed; same result).
+  constexpr size_t kRefBlock = 16384;
+  const size_t nblocks = (prim_bounds.size() + kRefBlock - 1) / kRefBlock;
+  auto valid = [&](size_t i) {
     const AABB& pb = prim_bounds[i];
-    if (pb.empty() || !is_finite(pb.lo) || !is_finite(pb.hi)) continue;
-    uint32_t bits = i;
-    float w;
-    std::memcpy(&w, &bits, 4);
-    PrimRef r{_mm_setr_ps(pb.lo.x, pb.lo.y, pb.lo.z, w), _mm_setr_ps(pb.hi.x, pb.hi.y, pb.hi.z, 0.0f)};
-    b.refs.push_back(r);
-    box.grow(lo_of(r), r.hi);
-    const __m128 c = _mm_mul_ps(centroid2(r), _mm_set1_ps(0.5f));
-    cbox.grow(c, c);
-  }
+    return !pb.empty() && is_finite(pb.lo) && is_finite(pb.hi);
+  };
+  struct RefBlock {
+    uint32_t count = 0, offset = 0;
+    SSEBox box, cbox;
+  };
+  std::vector<RefBlock> blocks(nblocks);
+  auto for_blocks = [&](const auto& body) {
+    if (options.parallel && nblocks > 1) tbb::parallel_for(size_t(0), nblocks, body);
+    else for (size_t k = 0; k < nblocks; ++k) body(k);
+  };
+  for_blocks([&](size_t k) {
+    uint32_t c = 0;
+    for (size_t i = k * kRefBlock, e = std::min(prim_bounds.size(), i + kRefBlock); i < e; ++i) c += valid(i);
+    blocks[k].count = c;
+  });
+  uint32_t total = 0;
+  for (RefBlock& blk : blocks) blk.offset = total, total += blk.count;
   BVH bvh;
-  if (b.refs.empty()) return bvh;
-  if (options.parallel && b.refs.size() > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[b.refs.size()]);
-  b.nodes.resize(2 * b.refs.size());
-  b.build(0, 0, uint32_t(b.refs.size()), box, cbox, 0);
+  if (total == 0) return bvh;
+  b.refs.reset(new PrimRef[total]);
+  b.num_refs = total;
+  for_blocks([&](size_t k) {
+    RefBlock& blk = blocks[k];
+    PrimRef* out = b.refs.get() + blk.offset;
+    for (size_t i = k * kRefBlock, e = std::min(prim_bounds.size(), i + kRefBlock); i < e; ++i) {
+      if (!valid(i)) continue;
+      const AABB& pb = prim_bounds[i];
+      const uint32_t bits = uint32_t(i);
+      float w;
+      std::memcpy(&w, &bits, 4);
+      const PrimRef r{_mm_setr_ps(pb.lo.x, pb.lo.y, pb.lo.z, w), _mm_setr_ps(pb.hi.x, pb.hi.y, pb.hi.z, 0.0f)};
+      *out++ = r;
+      blk.box.grow(lo_of(r), r.hi);
+      const __m128 c = centroid2(r);
+      blk.cbox.grow(c, c);
+    }
+  });
+  SSEBox box, cbox;
+  for (const RefBlock& blk : blocks) box.grow(blk.box), cbox.grow(blk.cbox);
+  if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
+  b.nodes.resize(2 * size_t(total));
+  b.build(0, 0, total, box, cbox, 0);
   b.nodes.resize(b.node_count.load());  // no shrink-to-fit copy: the rest was never touched
   bvh.nodes = std::move(b.nodes);
-  bvh.prim_order.resize(b.refs.size());
-  for (size_t i = 0; i < b.refs.size(); ++i) {
-    float w = _mm_cvtss_f32(_mm_shuffle_ps(b.refs[i].lo, b.refs[i].lo, _MM_SHUFFLE(3, 3, 3, 3)));
-    std::memcpy(&bvh.prim_order[i], &w, 4);
-  }
+  bvh.prim_order.resize(total);
+  auto order = [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const float w = _mm_cvtss_f32(_mm_shuffle_ps(b.refs[i].lo, b.refs[i].lo, _MM_SHUFFLE(3, 3, 3, 3)));
+      std::memcpy(&bvh.prim_order[i], &w, 4);
+    }
+  };
+  if (options.parallel && total > kRefBlock)
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, total, kRefBlock), [&](const tbb::blocked_range<size_t>& r) { order(r.begin(), r.end()); });
+  else
+    order(0, total);
   return bvh;
 }
 
