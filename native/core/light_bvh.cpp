@@ -397,16 +397,14 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
     if (!(sum > 0.0f)) return false;
     // The lane whose share of [0, sum) holds u * sum; u is rescaled to [0,1)
     // within it for the next level (pbrt-v4 SampleDiscrete).
-    int last = 3;
-    while (imp[last] <= 0.0f) --last;
+    // Without branches on the data: k counts the running sums x has passed
+    // (a lane without importance repeats the sum before it, so it is passed
+    // with it); only x rounded up to the top can land on an empty lane.
     const float x = u * sum;
-    float below = 0.0f;
-    int k = 0;
-    for (;; ++k) {
-      if (imp[k] <= 0.0f) continue;
-      if (k == last || x < below + imp[k]) break;
-      below += imp[k];
-    }
+    const float c[3] = {imp[0], imp[0] + imp[1], (imp[0] + imp[1]) + imp[2]};
+    int k = int(x >= c[0]) + int(x >= c[1]) + int(x >= c[2]);
+    while (imp[k] <= 0.0f) --k;
+    const float below = k == 0 ? 0.0f : c[k - 1];
     prob *= imp[k] / sum;
     u = std::clamp((x - below) / imp[k], 0.0f, 0x1.fffffep-1f);
     if (nd.leaf_mask & (1u << k)) {
