@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <new>
 
 #include "bvh8.h"
 #include "triangle.h"
@@ -43,10 +44,23 @@ struct Ray8x {
   __m256 tmax8_far;  // tmax widened as the far planes
   __m128 tmax4;
   int near_lo[3];
-  TriRay4 tri;
+  // The triangle test's constants (shear), made at the first leaf: most
+  // primary and random rays never reach one (they miss the mesh or pass
+  // between its boxes), and the shear costs a division and table look-ups.
+  vec3 org, dir;
+  bool tri_ready = false;
+  alignas(16) unsigned char tri_storage[sizeof(TriRay4)];
+
+  const TriRay4& tri() {
+    if (__builtin_expect(!tri_ready, 0)) {
+      new (tri_storage) TriRay4(org, dir);
+      tri_ready = true;
+    }
+    return *std::launder(reinterpret_cast<const TriRay4*>(tri_storage));
+  }
 
   // As Ray8 in bvh8_avx2.cpp.
-  Ray8x(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
+  Ray8x(const vec3& origin, const vec3& d, float t_max) : org(origin), dir(d) {
     for (int i = 0; i < 3; ++i) {
       float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
       float inv_i = 1.0f / di;
@@ -120,16 +134,23 @@ inline void prefetch_node(const char* base, uint32_t ref) {
   _mm_prefetch(p + 192, _MM_HINT_T0);
 }
 
+// Prefetches child node `c`, or (a leaf) the current node `self` again, which
+// is in L1: a conditional move instead of a mispredicted branch per child.
+inline void prefetch_interior(const char* base, uint32_t self, uint32_t c) {
+  prefetch_node(base, bvh4_is_leaf(c) ? self : c);
+}
+
 // The leaf loop of wide_intersect (wide_traverse.h).
 inline bool leaf_intersect(const char* base, uint32_t ref, Ray8x& ray, float& t_best, BVH4Hit& hit) {
   const Tri4* tris = wide_leaf(base, ref);
   WC(leaves);
   const uint32_t blocks = bvh4_leaf_blocks(ref);
+  const TriRay4& tri = ray.tri();
   bool found = false;
   for (uint32_t b = 0; b < blocks; ++b) {
     WC(blocks);
     __m128 t, u, v;
-    const int mask = intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v);
+    const int mask = intersect_tri4<true>(tris[b], tri, ray.tmax4, t, u, v);
     if (mask == 0) continue;
     alignas(16) float ts[4], us[4], vs[4];
     _mm_store_ps(ts, t);
@@ -174,11 +195,11 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
           ref = n.child[__builtin_ctz(mask)];
           continue;
         }
-        for (unsigned m = mask; m; m &= m - 1) {
-          const uint32_t c = n.child[__builtin_ctz(m)];
-          if (!bvh4_is_leaf(c)) prefetch_node(base, c);
-        }
         if (!kOrdered) {
+          for (unsigned m = mask; m; m &= m - 1) {
+            const uint32_t c = n.child[__builtin_ctz(m)];
+            if (!bvh4_is_leaf(c)) prefetch_node(base, c);
+          }
           // Stored order: push the others in reverse, descend into the first.
           alignas(32) float dist[8];
           _mm256_store_si256(reinterpret_cast<__m256i*>(dist), tnear);
@@ -195,6 +216,8 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
           _mm256_store_si256(reinterpret_cast<__m256i*>(dist), tnear);
           const int a = __builtin_ctz(mask), b = __builtin_ctz(rest);
           const uint32_t ra = n.child[a], rb = n.child[b], da = dist[a], db = dist[b];
+          prefetch_interior(base, ref, ra);
+          prefetch_interior(base, ref, rb);
           const bool swap = db < da;
           stack[sp].ref = swap ? ra : rb;
           reinterpret_cast<uint32_t*>(stack)[2 * sp + 1] = swap ? da : db;
@@ -202,6 +225,7 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
           ref = swap ? rb : ra;
           continue;
         }
+        for (unsigned m = mask; m; m &= m - 1) prefetch_interior(base, ref, n.child[__builtin_ctz(m)]);
         // Keys tnear << 32 | lane on hit lanes, 0 elsewhere (sorted last);
         // descending, the nearest hit child is key h - 1.
         __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepu32_epi64(tnear), 32), lane_ids);
@@ -267,10 +291,11 @@ bool occluded8x(const char* base, Ray8x& ray) {
       const Tri4* tris = wide_leaf(base, ref);
       WC(leaves);
       const uint32_t blocks = bvh4_leaf_blocks(ref);
+      const TriRay4& tri = ray.tri();
       for (uint32_t b = 0; b < blocks; ++b) {
         WC(blocks);
         __m128 t, u, v;
-        if (intersect_tri4(tris[b], ray.tri, ray.tmax4, t, u, v)) return true;
+        if (intersect_tri4<true>(tris[b], tri, ray.tmax4, t, u, v)) return true;
       }
     }
     if (sp == 0) return false;

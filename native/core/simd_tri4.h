@@ -6,7 +6,7 @@
 // contracted and the rounding is the same). Everything here has internal
 // linkage so that the two compilations never get merged by the linker.
 #pragma once
-#include <emmintrin.h>
+#include <immintrin.h>
 
 #include "bvh4.h"
 #include "triangle.h"
@@ -50,7 +50,10 @@ struct TriRay4 {
 
 // Watertight test of one ray against four triangles (see triangle.h for the
 // scalar version; the lanes repeat its operations exactly). Returns the mask
-// of lanes hit within (0, tmax) and their t, u, v.
+// of lanes hit within (0, tmax) and their t, u, v. kAvx512: only for code
+// compiled for AVX-512VL (bvh8_avx512.cpp), the zero and sign tests by
+// three-input logic (vpternlogd), same result.
+template <bool kAvx512 = false>
 inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128& t_out, __m128& u_out, __m128& v_out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const __m128 ax0 = _mm_sub_ps(_mm_load_ps(tri.v[0][kx]), r.okx);
@@ -69,7 +72,13 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
   __m128 v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
   __m128 w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
   const __m128 zero = _mm_setzero_ps();
-  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)), _mm_cmpeq_ps(w, zero));
+  __m128 any_zero;
+  if constexpr (kAvx512) {
+    any_zero = _mm_castsi128_ps(_mm_ternarylogic_epi32(_mm_castps_si128(_mm_cmpeq_ps(u, zero)),
+        _mm_castps_si128(_mm_cmpeq_ps(v, zero)), _mm_castps_si128(_mm_cmpeq_ps(w, zero)), 0xFE));  // a | b | c
+  } else {
+    any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)), _mm_cmpeq_ps(w, zero));
+  }
   if (__builtin_expect(_mm_movemask_ps(any_zero) != 0, 0)) {
     // An edge function is exactly zero: the scalar test redoes it in double.
     alignas(16) float ts[4], us[4], vs[4];
@@ -91,11 +100,19 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
     t_out = _mm_load_ps(ts), u_out = _mm_load_ps(us), v_out = _mm_load_ps(vs);
     return mask;
   }
-  const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)), _mm_cmplt_ps(w, zero));
-  const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)), _mm_cmpgt_ps(w, zero));
-  __m128 valid = _mm_andnot_ps(_mm_and_ps(neg, pos), _mm_castsi128_ps(_mm_set1_epi32(-1)));
   const __m128 det = _mm_add_ps(_mm_add_ps(u, v), w);
-  valid = _mm_and_ps(valid, _mm_cmpneq_ps(det, zero));
+  __m128 valid;
+  if constexpr (kAvx512) {
+    // No edge function is zero here, so "not both signs" is "all three sign
+    // bits equal" (a & b & c | ~a & ~b & ~c), and then det, their sum, is not
+    // zero either. (A NaN lane may pass here; its t is NaN and fails below.)
+    valid = _mm_castsi128_ps(_mm_ternarylogic_epi32(_mm_castps_si128(u), _mm_castps_si128(v), _mm_castps_si128(w), 0x81));
+  } else {
+    const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)), _mm_cmplt_ps(w, zero));
+    const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)), _mm_cmpgt_ps(w, zero));
+    valid = _mm_andnot_ps(_mm_and_ps(neg, pos), _mm_castsi128_ps(_mm_set1_epi32(-1)));
+    valid = _mm_and_ps(valid, _mm_cmpneq_ps(det, zero));
+  }
   if (_mm_movemask_ps(valid) == 0) return 0;
   WC(sign_pass);
   const __m128 az = _mm_mul_ps(r.sz, az0), bz = _mm_mul_ps(r.sz, bz0), cz = _mm_mul_ps(r.sz, cz0);
