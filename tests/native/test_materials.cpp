@@ -696,3 +696,29 @@ TEST(Textures, ByteTexelsReadAsTheirLinearValues) {
     EXPECT_NEAR(mid.x, 0.5f * (linear(10, 0) + linear(11, 0)), 1e-6f);
   }
 }
+
+// Repeat wraps as a periodic image: a lookup at uv + (i, j) equals the one at
+// uv, and bilinear and cubic lookups at the seams blend the texels across
+// the opposite edge, against a direct periodic evaluation.
+TEST(Textures, RepeatWrapsAcrossTheSeamsAndTiles) {
+  const int w = 5, h = 3;
+  Texture t;
+  t.width = w, t.height = h;
+  for (int i = 0; i < w * h; ++i) t.texels.push_back(vec4(float(i), float(i * i % 7), 1.0f + i % 3, 1.0f));
+  auto at = [&](int x, int y) { return t.texels[size_t(((y % h) + h) % h) * w + ((x % w) + w) % w]; };
+  for (auto interp : {Texture::Interpolation::Closest, Texture::Interpolation::Linear, Texture::Interpolation::Cubic}) {
+    t.interpolation = interp;
+    for (vec2 uv : {vec2(0.01f, 0.02f), vec2(0.99f, 0.97f), vec2(0.5f, 0.5f), vec2(0.31f, 0.9f)}) {
+      const vec4 ref = t.eval(uv);
+      for (vec2 shift : {vec2(1.0f, 0.0f), vec2(-3.0f, 2.0f), vec2(7.0f, -5.0f)})
+        for (int c = 0; c < 4; ++c) EXPECT_NEAR(t.eval(uv + shift)[c], ref[c], 2e-3f) << "shift " << shift.x << "," << shift.y;
+    }
+  }
+  // Bilinear at the bottom-left corner: the four corner texels of the image.
+  t.interpolation = Texture::Interpolation::Linear;
+  const vec2 uv(0.1f / w, 0.2f / h);  // 0.4 and 0.3 of a texel before the first texel centre
+  const float tx = 0.6f, ty = 0.7f;
+  const vec4 expect = (1 - ty) * ((1 - tx) * at(-1, -1) + tx * at(0, -1)) + ty * ((1 - tx) * at(-1, 0) + tx * at(0, 0));
+  const vec4 got = t.eval(uv);
+  for (int c = 0; c < 4; ++c) EXPECT_NEAR(got[c], expect[c], 1e-4f);
+}
