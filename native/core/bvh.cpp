@@ -3,6 +3,7 @@
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/combinable.h>
 #include <emmintrin.h>
 #include <sys/mman.h>
@@ -11,6 +12,7 @@
 #include <cstring>
 
 #include <algorithm>
+#include <functional>
 #include <atomic>
 #include <memory>
 #include <numeric>
@@ -544,12 +546,12 @@ struct FastBuilder {
   }
 };
 
-BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& options) {
+BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOptions& options) {
   FastBuilder b(options);
   // References of the valid boxes, in input order: blocks count theirs, a
   // prefix sum places them (in parallel when allowed; same result).
   constexpr size_t kRefBlock = 16384;
-  const size_t nblocks = (prim_bounds.size() + kRefBlock - 1) / kRefBlock;
+  const size_t nblocks = (num_prims + kRefBlock - 1) / kRefBlock;
   auto valid = [&](size_t i) {
     const AABB& pb = prim_bounds[i];
     return !pb.empty() && is_finite(pb.lo) && is_finite(pb.hi);
@@ -565,7 +567,7 @@ BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& 
   };
   for_blocks([&](size_t k) {
     uint32_t c = 0;
-    for (size_t i = k * kRefBlock, e = std::min(prim_bounds.size(), i + kRefBlock); i < e; ++i) c += valid(i);
+    for (size_t i = k * kRefBlock, e = std::min(num_prims, i + kRefBlock); i < e; ++i) c += valid(i);
     blocks[k].count = c;
   });
   uint32_t total = 0;
@@ -577,7 +579,7 @@ BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& 
   for_blocks([&](size_t k) {
     RefBlock& blk = blocks[k];
     PrimRef* out = b.refs.get() + blk.offset;
-    for (size_t i = k * kRefBlock, e = std::min(prim_bounds.size(), i + kRefBlock); i < e; ++i) {
+    for (size_t i = k * kRefBlock, e = std::min(num_prims, i + kRefBlock); i < e; ++i) {
       if (!valid(i)) continue;
       const AABB& pb = prim_bounds[i];
       const uint32_t bits = uint32_t(i);
@@ -613,8 +615,13 @@ BVH build_binned_fast(const std::vector<AABB>& prim_bounds, const BuildOptions& 
 
 }  // namespace
 
+BVH build_bvh(const AABB* prim_bounds, size_t count, const BuildOptions& options) {
+  if (options.method == SplitMethod::BinnedSAH) return build_binned_fast(prim_bounds, count, options);
+  return build_bvh(std::vector<AABB>(prim_bounds, prim_bounds + count), options);
+}
+
 BVH build_bvh(const std::vector<AABB>& prim_bounds, const BuildOptions& options) {
-  if (options.method == SplitMethod::BinnedSAH) return build_binned_fast(prim_bounds, options);
+  if (options.method == SplitMethod::BinnedSAH) return build_binned_fast(prim_bounds.data(), prim_bounds.size(), options);
   Builder b(prim_bounds, options);
   b.centroids.resize(prim_bounds.size());
   b.prims.reserve(prim_bounds.size());
@@ -639,11 +646,17 @@ float sah_cost(const BVH& bvh, const BuildOptions& options) {
   if (bvh.nodes.empty()) return 0.0f;
   const float root_area = AABB{bvh.nodes[0].lo, bvh.nodes[0].hi}.half_area();
   if (root_area <= 0.0f) return 0.0f;
-  double cost = 0.0;
-  for (const BVHNode& n : bvh.nodes) {
-    float area = AABB{n.lo, n.hi}.half_area() / root_area;
-    cost += n.is_leaf() ? options.intersection_cost * n.count * area : options.traversal_cost * area;
-  }
+  // Fixed blocks summed in a fixed order: the same value however many threads run.
+  auto sum = [&](const tbb::blocked_range<size_t>& r, double cost) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const BVHNode& n = bvh.nodes[i];
+      const float area = AABB{n.lo, n.hi}.half_area() / root_area;
+      cost += n.is_leaf() ? options.intersection_cost * n.count * area : options.traversal_cost * area;
+    }
+    return cost;
+  };
+  const double cost = tbb::parallel_deterministic_reduce(tbb::blocked_range<size_t>(0, bvh.nodes.size(), 16384), 0.0,
+                                                         sum, std::plus<double>());
   return float(cost);
 }
 

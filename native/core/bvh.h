@@ -90,6 +90,8 @@ struct BVH {
 // Builds a BVH over primitives given by their bounds (centroids are the box
 // centres). Empty boxes (degenerate or invalid primitives) are kept out of the tree.
 BVH build_bvh(const std::vector<AABB>& prim_bounds, const BuildOptions& options = {});
+// The same over an array of count boxes (build_mesh fills one in parallel).
+BVH build_bvh(const AABB* prim_bounds, size_t count, const BuildOptions& options = {});
 
 // SAH cost of a built tree, relative to its root area (MacDonald & Booth 1990).
 float sah_cost(const BVH& bvh, const BuildOptions& options = {});

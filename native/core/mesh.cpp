@@ -2,6 +2,9 @@
 
 #include <tbb/parallel_for.h>
 
+#include <new>
+#include <type_traits>
+
 #include "simd.h"
 
 
@@ -17,29 +20,43 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   Mesh mesh;
   const size_t nt = in.num_triangles;
   mesh.num_input_triangles = nt;
-  std::vector<AABB> boxes(nt);
+  // Triangle boxes, written once each in parallel (no serial construction
+  // of the array first); invalid triangles get an empty box and are skipped.
+  struct Boxes {
+    AABB* p;
+    explicit Boxes(size_t n) : p(static_cast<AABB*>(::operator new(std::max<size_t>(n, 1) * sizeof(AABB)))) {}
+    ~Boxes() { ::operator delete(p); }
+  } boxes(nt);
+  static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
-  tbb::parallel_for(size_t(0), nt, [&](size_t i) {
-    const uint32_t* idx = in.indices + 3 * i;
-    if (idx[0] >= in.num_vertices || idx[1] >= in.num_vertices || idx[2] >= in.num_vertices) return;
-    AABB box;
-    for (int k = 0; k < 3; ++k) {
-      if (!is_finite(pos[idx[k]])) return;  // box stays empty: the triangle is skipped
-      box.grow(pos[idx[k]]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t* idx = in.indices + 3 * i;
+      AABB box;
+      const bool in_range = idx[0] < in.num_vertices && idx[1] < in.num_vertices && idx[2] < in.num_vertices;
+      for (int k = 0; k < 3 && in_range; ++k) {
+        if (!is_finite(pos[idx[k]])) {
+          box = AABB{};
+          break;
+        }
+        box.grow(pos[idx[k]]);
+      }
+      new (&boxes.p[i]) AABB(box);
     }
-    boxes[i] = box;
   });
   BuildOptions opt = options;
   if (opt.sah_block_size <= 0) opt.sah_block_size = 4;  // Tri4 leaves
   opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
-  BVH binary = build_bvh(boxes, opt);
+  BVH binary = build_bvh(boxes.p, nt, opt);
   const size_t kept = binary.prim_order.size();
   mesh.num_skipped_triangles = nt - kept;
   mesh.tri_verts.resize(3 * kept);
   mesh.prim_ids = std::move(binary.prim_order);
-  tbb::parallel_for(size_t(0), kept, [&](size_t i) {
-    const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
-    for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, kept, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
+      for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
+    }
   });
   const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
   const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
