@@ -59,18 +59,42 @@ struct Ray8x {
     return *std::launder(reinterpret_cast<const TriRay4*>(tri_storage));
   }
 
-  // As Ray8 in bvh8_avx2.cpp.
+  // Ray8's values (bvh8_avx2.cpp: the 1e-30 clamp, 1 / d, widen_far,
+  // parallel_axis_delta, flip_sign), the three axes at once in one SSE
+  // register: the same operations lane by lane, so the same bits.
   Ray8x(const vec3& origin, const vec3& d, float t_max) : org(origin), dir(d) {
+    const __m128 o4 = _mm_setr_ps(origin.x, origin.y, origin.z, 0.0f);
+    const __m128 d4 = _mm_setr_ps(d.x, d.y, d.z, 1.0f);
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 abs_d = _mm_andnot_ps(sign, d4);
+    const __m128 tiny = _mm_cmplt_ps(abs_d, _mm_set1_ps(1e-30f));
+    const __m128 di = _mm_blendv_ps(d4, _mm_or_ps(_mm_and_ps(sign, d4), _mm_set1_ps(1e-30f)), tiny);
+    const __m128 inv4 = _mm_div_ps(_mm_set1_ps(1.0f), di);
+    // widen_far: x (1 + 2 gamma(3)), then two ulps out unless zero, inf or
+    // NaN; a magnitude within two ulps of inf becomes inf.
+    const __m128i w = _mm_castps_si128(_mm_mul_ps(inv4, _mm_set1_ps(1.0f + 2.0f * gamma(3))));
+    const __m128i mag = _mm_and_si128(w, _mm_set1_epi32(0x7FFFFFFF));
+    const __mmask8 keep = _mm_cmpeq_epi32_mask(mag, _mm_setzero_si128()) | _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFF));
+    const __mmask8 to_inf = _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFD)) & ~keep;
+    __m128i wf = _mm_mask_add_epi32(w, __mmask8(~keep), w, _mm_set1_epi32(2));
+    wf = _mm_mask_or_epi32(wf, to_inf, _mm_and_si128(w, _mm_castps_si128(sign)), _mm_set1_epi32(0x7F800000));
+    const __m128 inv_far4 = _mm_castsi128_ps(wf);
+    // near_lo = !(inv >= 0); delta = |d| < 1e-30 ? |o| 1e-6 + 1e-20 : 0, its
+    // sign flipped where near_lo.
+    const __m128 near_neg = _mm_cmpnge_ps(inv4, _mm_setzero_ps());
+    const int near_bits = _mm_movemask_ps(near_neg);
+    const __m128 delta = _mm_and_ps(tiny, _mm_add_ps(_mm_mul_ps(_mm_andnot_ps(sign, o4), _mm_set1_ps(1e-6f)), _mm_set1_ps(1e-20f)));
+    const __m128 signed_delta = _mm_xor_ps(delta, _mm_and_ps(near_neg, sign));
+    const __m128 on4 = _mm_add_ps(o4, signed_delta), of4 = _mm_sub_ps(o4, signed_delta);
+    auto lane = [](__m128 x, int i) {
+      return _mm256_permutevar8x32_ps(_mm256_castps128_ps256(x), _mm256_set1_epi32(i));
+    };
     for (int i = 0; i < 3; ++i) {
-      float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
-      float inv_i = 1.0f / di;
-      inv[i] = _mm256_set1_ps(inv_i);
-      inv_far[i] = _mm256_set1_ps(widen_far(inv_i));
-      near_lo[i] = int(!(inv_i >= 0.0f));
-      const float delta = parallel_axis_delta(origin[i], d[i]);
-      const float signed_delta = flip_sign(delta, near_lo[i]);
-      org_near[i] = _mm256_set1_ps(origin[i] + signed_delta);
-      org_far[i] = _mm256_set1_ps(origin[i] - signed_delta);
+      inv[i] = lane(inv4, i);
+      inv_far[i] = lane(inv_far4, i);
+      org_near[i] = lane(on4, i);
+      org_far[i] = lane(of4, i);
+      near_lo[i] = (near_bits >> i) & 1;
     }
     set_tmax(t_max);
   }

@@ -235,6 +235,8 @@ TEST(Triangle, Bvh8Avx512KernelEqualsAvx2Kernel) {
     if (i % 5 == 0) d = vec3(0.0f, 0.0f, d.z);  // axis-parallel rays
     if (i % 7 == 0) o.z = 0.5f;                 // origins on the plane
     if (i % 11 == 0) o = vec3(0.0f);            // many children at tnear = 0
+    if (i % 13 == 0) d.x = -0.0f;               // the ray setup's clamp and signs
+    if (i % 17 == 0) d.y = (i & 1 ? 1e-35f : -1e-31f);
     if (glm::length(d) == 0.0f) continue;
     for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
       float t2 = kInf, t5 = kInf;
