@@ -126,13 +126,13 @@ void BSDF::add_principled(const Closure& c, bool back_face) {
 
   const float specular = std::max(0.0f, c.specular);
   const float spec_weight = (specular > 1e-5f || metallic > 1e-5f) ? (1.0f - transmission) * w : 0.0f;
-  const float spec_ior = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
   const vec3 cspec0 = vec3(specular * 0.08f) * (1.0f - metallic) + base * metallic;
 
   const float glass_weight = transmission * w;
   const float ior = std::max(c.ior, 1e-4f);
   const float eta = back_face ? 1.0f / ior : ior;
-  const float fresnel_o = fresnel_dielectric(wo_.z, eta);
+  // Only glass needs the Fresnel term (a square root and two divisions).
+  const float fresnel_o = glass_weight > 0.0f ? fresnel_dielectric(wo_.z, eta) : 0.0f;
 
   const float cos_o = std::max(wo_.z, 0.0f);
   const vec3 spec_albedo = cspec0 + (vec3(1.0f) - cspec0) * schlick_weight(cos_o);
@@ -152,7 +152,7 @@ void BSDF::add_principled(const Closure& c, bool back_face) {
     l.k = spec_weight;
     l.ggx = GGX{alpha};
     l.cspec0 = cspec0;
-    l.spec_ior = spec_ior;
+    l.spec_ior = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
   }
   if (k_reflect > 0.0f) {  // untinted, as Cycles 3.x's principled glass reflection
     Lobe& l = add_lobe(Lobe::kReflection, k_reflect);
