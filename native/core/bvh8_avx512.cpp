@@ -165,7 +165,7 @@ inline void prefetch_interior(const char* base, uint32_t self, uint32_t c) {
 }
 
 // The leaf loop of wide_intersect (wide_traverse.h).
-inline bool leaf_intersect(const char* base, uint32_t ref, Ray8x& ray, float& t_best, BVH4Hit& hit) {
+__attribute__((always_inline)) inline bool leaf_intersect(const char* base, uint32_t ref, Ray8x& ray, float& t_best, BVH4Hit& hit) {
   const Tri4* tris = wide_leaf(base, ref);
   WC(leaves);
   const uint32_t blocks = bvh4_leaf_blocks(ref);

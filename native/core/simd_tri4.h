@@ -48,13 +48,38 @@ struct TriRay4 {
   }
 };
 
+// An edge function is exactly zero in some lane: the scalar test redoes
+// every lane (in double where it needs to). Out of line and cold, so the
+// fast path inlines into the traversal loops without it.
+__attribute__((noinline, cold)) int intersect_tri4_exact_zero(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128& t_out,
+                                                             __m128& u_out, __m128& v_out) {
+  alignas(16) float ts[4], us[4], vs[4];
+  alignas(16) float tm[4];
+  _mm_store_ps(tm, tmax);
+  int mask = 0;
+  for (int lane = 0; lane < 4; ++lane) {
+    const vec3 p0(tri.v[0][0][lane], tri.v[0][1][lane], tri.v[0][2][lane]);
+    const vec3 p1(tri.v[1][0][lane], tri.v[1][1][lane], tri.v[1][2][lane]);
+    const vec3 p2(tri.v[2][0][lane], tri.v[2][1][lane], tri.v[2][2][lane]);
+    TriangleHit h;
+    if (intersect_triangle(p0, p1, p2, r.o, r.shear, tm[lane], h)) {
+      mask |= 1 << lane;
+      ts[lane] = h.t, us[lane] = h.u, vs[lane] = h.v;
+    } else {
+      ts[lane] = kInf, us[lane] = vs[lane] = 0.0f;
+    }
+  }
+  t_out = _mm_load_ps(ts), u_out = _mm_load_ps(us), v_out = _mm_load_ps(vs);
+  return mask;
+}
+
 // Watertight test of one ray against four triangles (see triangle.h for the
 // scalar version; the lanes repeat its operations exactly). Returns the mask
 // of lanes hit within (0, tmax) and their t, u, v. kAvx512: only for code
 // compiled for AVX-512VL (bvh8_avx512.cpp), the zero and sign tests by
 // three-input logic (vpternlogd), same result.
 template <bool kAvx512 = false>
-inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128& t_out, __m128& u_out, __m128& v_out) {
+__attribute__((always_inline)) inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128& t_out, __m128& u_out, __m128& v_out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const __m128 ax0 = _mm_sub_ps(_mm_load_ps(tri.v[0][kx]), r.okx);
   const __m128 ay0 = _mm_sub_ps(_mm_load_ps(tri.v[0][ky]), r.oky);
@@ -79,27 +104,7 @@ inline int intersect_tri4(const Tri4& tri, const TriRay4& r, __m128 tmax, __m128
   } else {
     any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)), _mm_cmpeq_ps(w, zero));
   }
-  if (__builtin_expect(_mm_movemask_ps(any_zero) != 0, 0)) {
-    // An edge function is exactly zero: the scalar test redoes it in double.
-    alignas(16) float ts[4], us[4], vs[4];
-    alignas(16) float tm[4];
-    _mm_store_ps(tm, tmax);
-    int mask = 0;
-    for (int lane = 0; lane < 4; ++lane) {
-      const vec3 p0(tri.v[0][0][lane], tri.v[0][1][lane], tri.v[0][2][lane]);
-      const vec3 p1(tri.v[1][0][lane], tri.v[1][1][lane], tri.v[1][2][lane]);
-      const vec3 p2(tri.v[2][0][lane], tri.v[2][1][lane], tri.v[2][2][lane]);
-      TriangleHit h;
-      if (intersect_triangle(p0, p1, p2, r.o, r.shear, tm[lane], h)) {
-        mask |= 1 << lane;
-        ts[lane] = h.t, us[lane] = h.u, vs[lane] = h.v;
-      } else {
-        ts[lane] = kInf, us[lane] = vs[lane] = 0.0f;
-      }
-    }
-    t_out = _mm_load_ps(ts), u_out = _mm_load_ps(us), v_out = _mm_load_ps(vs);
-    return mask;
-  }
+  if (__builtin_expect(_mm_movemask_ps(any_zero) != 0, 0)) return intersect_tri4_exact_zero(tri, r, tmax, t_out, u_out, v_out);
   const __m128 det = _mm_add_ps(_mm_add_ps(u, v), w);
   __m128 valid;
   if constexpr (kAvx512) {
