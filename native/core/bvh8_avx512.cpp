@@ -303,10 +303,7 @@ bool occluded8x(const char* base, Ray8x& ray) {
           _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + sp), _mm256_maskz_compress_epi32(__mmask8(rest), refs));
           sp += __builtin_popcount(rest);
           // Any-hit visits every pushed node unless it stops: fetch them now.
-          for (unsigned m = rest; m; m &= m - 1) {
-            const uint32_t c = n.child[__builtin_ctz(m)];
-            if (!bvh4_is_leaf(c)) prefetch_node(base, c);
-          }
+          for (unsigned m = rest; m; m &= m - 1) prefetch_interior(base, ref, n.child[__builtin_ctz(m)]);
         }
         ref = n.child[__builtin_ctz(mask)];
         continue;
