@@ -24,7 +24,7 @@ def packages(tmp_path_factory):
     env = dict(os.environ, DIST=str(dist))
     for no_core in ("0", "1"):
         subprocess.run([os.path.join(ROOT, "scripts", "package.sh")], env=dict(env, NO_CORE=no_core),
-                       check=True, capture_output=True, timeout=120)
+                       check=True, capture_output=True, timeout=900)
     zips = {p.name: str(p) for p in dist.iterdir()}
     pick = lambda kind, nocore: next(v for k, v in zips.items() if kind in k and k.endswith("-nocore.zip") == nocore)
     return {"addon": pick("-addon-", False), "extension": pick("-extension-", False),
