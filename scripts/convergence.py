@@ -34,12 +34,6 @@ import bpy
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "addon"))
-sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
-
-import tessera  # noqa: E402
-from helpers import render, set_size  # noqa: E402
-
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 ap = argparse.ArgumentParser()
 ap.add_argument("scenes", nargs="+")
@@ -58,8 +52,21 @@ ap.add_argument("--adaptive-seeds", type=int, default=1,
                 help="renders per method (seeds 0..N-1); the table shows sqrt of their mean MSE")
 ap.add_argument("--adaptive-only", action="store_true",
                 help="only the adaptive/uniform comparison (Tessera reference only, no ladders)")
+ap.add_argument("--adaptive-equal-samples", action="store_true",
+                help="also render each adaptive run's mean samples per pixel uniformly (same seed): "
+                     "the comparison at equal samples, which machine load does not move")
+ap.add_argument("--ref-cache", default="",
+                help="with --adaptive-only: take Tessera's reference from this folder "
+                     "(scripts/noise_at_equal_samples.py's cache, <scene>_TESSERA_<ref>_1000_<bounces>_<width>.npy) "
+                     "when it is there")
+ap.add_argument("--addon", default=os.path.join(HERE, "..", "addon"), help="folder holding the tessera add-on")
 ap.add_argument("--out", default=os.path.join(HERE, "..", "docs", "convergence"))
 args = ap.parse_args(argv)
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
+sys.path.insert(0, args.addon)
+
+import tessera  # noqa: E402
+from helpers import render, set_size  # noqa: E402
 
 if not hasattr(bpy.types.Scene, "tessera"):
     tessera.register()
@@ -102,6 +109,11 @@ for path in args.scenes:
     print(f"convergence: {name}", flush=True)
     refs = {}
     for eng in (("TESSERA",) if args.adaptive_only else ENGINES):
+        cache = os.path.join(args.ref_cache, f"{name[:-6]}_{eng}_{args.ref_samples}_1000_{args.bounces}_{args.width}.npy")
+        if args.adaptive_only and args.ref_cache and os.path.exists(cache):
+            refs[eng] = np.load(cache)
+            print(f"  reference {eng}: {cache}", flush=True)
+            continue
         img, wall, st = run(path, eng, args.ref_samples, args.bounces, seed=1000)
         refs[eng] = img
         print(f"  reference {eng}: {args.ref_samples} samples, {wall:.1f} s", flush=True)
@@ -114,7 +126,7 @@ for path in args.scenes:
         other = metrics(img, refs.get("CYCLES" if eng == "TESSERA" else "TESSERA", refs[eng]))
         row = dict(scene=name, engine=eng, ladder=ladder, samples=samples, bounces=bounces, seconds=wall,
                    render_seconds=st.get("render_seconds", ""),
-                   mean_samples=st.get("mean_samples", samples),
+                   mean_samples=st.get("mean_samples", samples), rays=st.get("rays", ""),
                    rmse_own=own["rmse"], relmse_own=own["relmse"], rmse_other=other["rmse"],
                    relmse_other=other["relmse"], efficiency_own=1.0 / (own["rmse"] ** 2 * wall),
                    true_rel_error=own["true_rel_error"], est_error=st.get("estimated_error", ""),
@@ -154,24 +166,53 @@ for path in args.scenes:
             lt = math.log(t1) + f * (math.log(t2) - math.log(t1))
         ratio = c64["seconds"] / math.exp(lt)
 
-    # Adaptive against uniform, same time budget.
+    # Adaptive against uniform, same time budget: the budget is the median
+    # render time of 3 uniform renders at N samples; then per seed the methods
+    # take turns (the order rotating), so load from other work hits all alike.
     adaptive = []
     if name in args.adaptive_scenes:
         for budget_spp in args.adaptive_budget_samples:
-            _, budget_wall, st = run(path, "TESSERA", budget_spp, args.bounces)
-            budget = st["render_seconds"]
-            res = {}
-            for label, thr in [("uniform", 0.0)] + [(f"adaptive {t}", t) for t in args.adaptive_threshold]:
-                runs = []
-                for seed in range(args.adaptive_seeds):
+            budget = float(np.median([run(path, "TESSERA", budget_spp, args.bounces, seed=100 + k)[2]["render_seconds"]
+                                      for k in range(3)]))
+            methods = [("uniform", 0.0)] + [(f"adaptive {t}", t) for t in args.adaptive_threshold]
+            runs = {label: [] for label, _ in methods}
+            equal = {label: [] for label, _ in methods[1:]}
+            for seed in range(args.adaptive_seeds):
+                order = methods[seed % len(methods):] + methods[:seed % len(methods)]
+                for label, thr in order:
                     img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, seed=seed, time_limit=budget,
                                         adaptive_threshold=thr, adaptive_min_samples=args.adaptive_min_samples)
-                    runs.append(measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st,
-                                         time_limit=budget, seed=seed))
-                res[label] = dict(runs[0], rmse_own=math.sqrt(sum(r["rmse_own"] ** 2 for r in runs) / len(runs)),
-                                  mean_samples=sum(r["mean_samples"] for r in runs) / len(runs))
+                    runs[label].append(measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st,
+                                                time_limit=budget, seed=seed))
+                    if thr > 0 and args.adaptive_equal_samples:
+                        # Uniform at the adaptive run's mean samples per pixel (same seed).
+                        spp = max(1, round(st["mean_samples"]))
+                        img_u, wall_u, st_u = run(path, "TESSERA", spp, args.bounces, seed=seed)
+                        u = measured("TESSERA", f"uniform at {label}'s samples", spp, args.bounces, img_u, wall_u, st_u,
+                                     seed=seed)
+                        equal[label].append((runs[label][-1]["rmse_own"], u["rmse_own"],
+                                             st["mean_samples"], st_u["mean_samples"], st["rays"], st_u["rays"]))
+            res = {}
+            for label, rs in runs.items():
+                res[label] = dict(rs[0], rmse_own=math.sqrt(sum(r["rmse_own"] ** 2 for r in rs) / len(rs)),
+                                  rmse_median=float(np.median([r["rmse_own"] for r in rs])),
+                                  mean_samples=sum(r["mean_samples"] for r in rs) / len(rs), runs=rs)
+            u_runs = runs["uniform"]
             for t in args.adaptive_threshold:
-                adaptive.append((budget, res["uniform"], res[f"adaptive {t}"], budget_spp, t))
+                label = f"adaptive {t}"
+                a_runs = runs[label]
+                res[label]["seed_ratio_median"] = float(np.median(
+                    [ar["rmse_own"] / ur["rmse_own"] for ar, ur in zip(a_runs, u_runs)]))
+                res[label]["seed_wins"] = sum(ar["rmse_own"] < ur["rmse_own"] for ar, ur in zip(a_runs, u_runs))
+                e = equal[label]
+                if e:
+                    res[label]["equal_ratio"] = math.sqrt(sum(x[0] ** 2 for x in e) / sum(x[1] ** 2 for x in e))
+                    res[label]["equal_ratio_median"] = float(np.median([x[0] / x[1] for x in e]))
+                    res[label]["equal_wins"] = sum(x[0] < x[1] for x in e)
+                    # Rays per sample, adaptive over uniform: what a sample of the pixels adaptive
+                    # sampling chose costs against an average one (a time budget buys fewer if > 1).
+                    res[label]["equal_rays"] = float(np.median([(x[4] / x[2]) / (x[5] / x[3]) for x in e]))
+                adaptive.append((budget, res["uniform"], res[label], budget_spp, t))
 
     summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive))
 
@@ -251,15 +292,24 @@ for path in args.scenes:
     for s in summary:
         lines.append(f"| {s['name']} | " + " | ".join(f"{r['est_over_true']:.2f}" for r in s["ladder"]["TESSERA"]) + " |")
     lines += ["", "## Adaptive against uniform sampling at the same time budget (Tessera)", "",
-              "Budget: Tessera's render time at N uniform samples; both runs get it as time limit. Adaptive: "
-              f"min samples {args.adaptive_min_samples or 'automatic'}. "
-              f"RMSE against Tessera's reference, sqrt of the mean MSE over {args.adaptive_seeds} seed(s).", "",
-              "| scene | budget (N spp) | noise threshold | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | uniform mean spp | adaptive mean spp |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "Budget: the median render time of 3 uniform Tessera renders at N samples; every run gets it as time "
+              "limit, the methods taking turns per seed. Adaptive: min samples "
+              f"{args.adaptive_min_samples or 'automatic'}. RMSE against Tessera's reference: sqrt of the mean MSE "
+              f"over {args.adaptive_seeds} seeds (0..{args.adaptive_seeds - 1}), and the median over seeds of the "
+              "per-seed ratio adaptive/uniform (wins: seeds where adaptive's RMSE is lower). Equal samples: each "
+              "adaptive run against a uniform render of the same seed at its mean samples per pixel (rounded), and the "
+              "median ratio of their rays per sample.", "",
+              "| scene | budget (N spp) | noise threshold | time limit s | uniform RMSE | adaptive RMSE | adaptive/uniform | "
+              "median per-seed ratio (wins) | uniform mean spp | adaptive mean spp | equal samples: ratio, median per-seed (wins) | "
+              "equal samples: rays per sample adaptive/uniform |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in summary:
         for b, u, a, n, t in s["adaptive"]:
+            eq = (f"{a['equal_ratio']:.2f}, {a['equal_ratio_median']:.2f} ({a['equal_wins']}/{args.adaptive_seeds}) | "
+                  f"{a['equal_rays']:.2f}" if "equal_ratio" in a else "- | -")
             lines.append(f"| {s['name']} | {n} | {t} | {b:.2f} | {u['rmse_own']:.5f} | {a['rmse_own']:.5f} | "
-                         f"{a['rmse_own'] / u['rmse_own']:.2f} | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} |")
+                         f"{a['rmse_own'] / u['rmse_own']:.2f} | {a['seed_ratio_median']:.2f} "
+                         f"({a['seed_wins']}/{args.adaptive_seeds}) | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} | {eq} |")
     lines += ["", "## Runs", "",
               "| scene | engine | ladder | samples | bounces | s | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
               "|---|---|---|---|---|---|---|---|---|---|"]

@@ -47,13 +47,15 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         default=64, min=1, soft_max=4096)
     adaptive_threshold: FloatProperty(
         name="Noise Threshold", description="Adaptive sampling: a pixel stops when its estimated error (Cycles' "
-        "measure) is below this; 0 disables adaptive sampling",
+        "measure) is below this; with a Time Limit or an Error Target, the pixels still above it share the "
+        "samples by their estimated error (noisier pixels get more). 0 disables adaptive sampling",
         default=0.0, min=0.0, max=1.0, soft_max=0.2, precision=4, step=0.1)
     adaptive_min_samples: IntProperty(
         name="Min Samples", description="Adaptive sampling: samples every pixel gets before it may stop; 0 is automatic",
         default=0, min=0, soft_max=4096)
     time_limit: FloatProperty(
-        name="Time Limit", description="Stop rendering after this many seconds; 0 disables",
+        name="Time Limit", description="Stop rendering after this many seconds (with adaptive sampling, the time "
+        "goes to the noisiest pixels); 0 disables",
         default=0.0, min=0.0, subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE')
     error_target: FloatProperty(
         name="Error Target", description="Stop when the estimated relative RMSE of the whole image is below this "

@@ -47,7 +47,9 @@ class Film {
 
   void add(size_t i, int sample, const vec3& L) {
     sum_[i] += L;
+    sum_sq_[i] += double(L.x) * L.x + double(L.y) * L.y + double(L.z) * L.z;
     if (class_a(sample)) sum_a_[i] += L;
+    if (L.x + L.y + L.z > max_[i].x + max_[i].y + max_[i].z) max_[i] = L;
   }
   // The sample classes that adaptive sampling compares (Cycles'
   // sample_is_class_A, after Christensen et al. 2018, "Progressive
@@ -73,24 +75,42 @@ class Film {
     if (replicate_sum_.empty() || x % stride_ != 0 || y % stride_ != 0) return -1;
     return (y / stride_) * replicate_columns_ + x / stride_;
   }
-  void add_replicate(int slot, const vec3& L) { replicate_sum_[size_t(slot)] += L; }
+  void add_replicate(int slot, const vec3& L) {
+    replicate_sum_[size_t(slot)] += L;
+    vec3& m = replicate_max_[size_t(slot)];
+    if (L.x + L.y + L.z > m.x + m.y + m.z) m = L;
+  }
   int replicate_stride() const { return stride_; }
 
   // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
   // RGB, normalised by sqrt of the RGB sum.
   float pixel_error(size_t i) const;
+  // The variance of one sample of pixel i, summed over RGB: the plain sample
+  // variance of its samples (0 under two samples). Over-states the error of
+  // the Owen-scrambled mean where the integrand is smooth, not where rare
+  // bright samples (fireflies) carry it.
+  double sample_variance(size_t i) const;
+  // |full - class A half|^2 summed over RGB: ~ the variance of the pixel's mean.
+  double half_difference_sq(size_t i) const;
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
-  // channels) / mean pixel value, the variance from the replicates (above);
-  // 0 without replicates.
-  double estimated_relative_error() const;
+  // channels) / mean pixel value, the variance from the replicates (above)
+  // and, from every pixel, the error its firefly (a sample over
+  // firefly_threshold x the image's mean pixel value) carries (film.cpp);
+  // firefly_threshold 0: the replicates alone. 0 without replicates.
+  static constexpr double kFireflyThreshold = 16.0;
+  static constexpr double kFireflyDominance = 2.0;  // x the sum of the pixel's other samples
+  double estimated_relative_error(double firefly_threshold = kFireflyThreshold) const;
 
  private:
   int width_ = 0, stride_ = 1, replicate_columns_ = 0;
   std::vector<vec3> sum_, sum_a_;
+  std::vector<double> sum_sq_;  // per pixel: sum over samples of |L|^2 (RGB)
   std::vector<int> count_;
   std::vector<uint8_t> active_;
+  std::vector<vec3> max_;  // per pixel: its brightest sample (largest RGB sum)
   std::vector<vec3> replicate_sum_;  // per replicate slot: the replicate's sum (same count as the pixel)
+  std::vector<vec3> replicate_max_;  // per replicate slot: the replicate's brightest sample
 };
 
 }  // namespace tessera

@@ -32,7 +32,10 @@ struct RenderOptions {
   // Adaptive sampling (render.cpp): after each pass, a pixel with at least
   // adaptive_min_samples (0: automatic) stops when its estimated error
   // (Cycles' formula) has been below adaptive_threshold at two pass
-  // boundaries in a row, and its 3x3 neighbours' too. 0: off.
+  // boundaries in a row, and its 3x3 neighbours' too. With a time limit or
+  // an error target, passes after the minimum go to the pixels still
+  // sampling by their estimated error (RenderSession::allocate_by_error),
+  // each up to `samples`. 0: off.
   float adaptive_threshold = 0.0f;
   int adaptive_min_samples = 0;
   // Stop after this many seconds of rendering (render.cpp); 0: off.

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 
 namespace tessera {
 
@@ -31,7 +33,7 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
     if (data_passes_.mask() & (1u << b)) pass_display_[b].assign(film_.size() * pass_channels(1u << b), 0.0f);
 }
 
-void RenderSession::render_tile(int tile, int sample_begin, int sample_end, PathCounters& counters) {
+void RenderSession::render_tile(int tile, PathCounters& counters) {
   const int ts = options_.tile_size;
   const int tx = tile % tiles_x_, ty = tile / tiles_x_;
   const int px0 = x0_ + tx * ts, py0 = y0_ + ty * ts;
@@ -40,6 +42,8 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
     for (int px = px0; px < px1; ++px) {
       const size_t i = size_t(py - y0_) * width() + (px - x0_);
       if (!film_.active(i)) continue;
+      const int sample_begin = film_.count(i), sample_end = pass_end_[i];
+      if (sample_end <= sample_begin) continue;
       for (int s = sample_begin; s < sample_end; ++s) {
         // Pixel coordinates are those of the full frame, so a region render
         // reproduces the full render's pixels exactly.
@@ -66,6 +70,70 @@ void RenderSession::render_tile(int tile, int sample_begin, int sample_end, Path
       film_.set_count(i, sample_end);
     }
   }
+}
+
+uint64_t RenderSession::allocate_by_error(uint64_t budget, int step) {
+  const int w = width(), h = height(), total = options_.samples;
+  const size_t n = film_.size();
+  // The error a pixel contributes at n_i samples is ~ v_i / n_i (v_i: its
+  // per-sample variance); for a fixed number of samples over the image the
+  // squared error is least when n_i ~ sqrt(v_i) (Lagrange). The weight is the
+  // square root of the pixel's sample variance or, if larger, of its 3x3
+  // neighbourhood's mean: a pixel whose rare bright samples have not shown up
+  // yet, next to one where they have, is not sure to be smooth. (The sample
+  // variance over-states the Sobol mean's error where the integrand is smooth;
+  // n x the class-A half difference, which does not, did no better on the
+  // shared scenes, the pixel's own variance alone worse: docs/convergence/ADAPTIVE.md.)
+  std::vector<double> v(n, 0.0);
+  for (size_t i = 0; i < n; ++i) v[i] = film_.sample_variance(i);
+  weight_.assign(n, 0.0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = size_t(y) * w + x;
+      if (!film_.active(i) || film_.count(i) >= total) continue;
+      double sum = 0.0;
+      int k = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+          sum += v[size_t(ny) * w + nx], ++k;
+        }
+      weight_[i] = std::sqrt(std::max(v[i], sum / k));
+    }
+  // Water-filling: pixel i is brought up to lambda * weight_i samples (at
+  // most step or its count more, never past total), lambda the largest that
+  // fits the budget.
+  auto given = [&](double lambda, bool write) {
+    uint64_t sum = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const int c = film_.count(i);
+      int k = 0;
+      if (weight_[i] > 0.0) {
+        const double want = lambda * weight_[i] - c;
+        k = want <= 0.0 ? 0 : int(std::min<double>(want, std::min(std::max(step, c), total - c)));
+      }
+      if (write) pass_end_[i] = c + k;
+      sum += uint64_t(k);
+    }
+    return sum;
+  };
+  double lo = 0.0, hi = 1.0;
+  while (given(hi, false) < budget && hi < 1e30) hi *= 2.0;
+  for (int it = 0; it < 60 && hi > lo * (1.0 + 1e-9); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (given(mid, false) <= budget ? lo : hi) = mid;
+  }
+  uint64_t sum = given(lo, true);
+  if (sum == 0) {
+    // Nothing to tell the pixels apart (all black so far): the same for each.
+    for (size_t i = 0; i < n; ++i) {
+      const int c = film_.count(i);
+      pass_end_[i] = film_.active(i) ? std::min(total, c + step) : c;
+      sum += uint64_t(pass_end_[i] - c);
+    }
+  }
+  return sum;
 }
 
 Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
@@ -140,19 +208,40 @@ void RenderSession::render() {
     for (size_t i = 0; i < num_pixels; ++i) display_[4 * i + 3] = 1.0f;
     samples_done_.store(done);
   }
-  while (done < total && !cancel_.load()) {
+  // Adaptive sampling with a time limit or an error target has a budget
+  // rather than a sample count to reach: once every pixel has the minimum,
+  // each pass spreads its samples over the pixels still above the noise
+  // threshold by their estimated error (allocate_by_error) instead of
+  // giving each the same number.
+  const bool by_error = adaptive && (options_.time_limit > 0.0 || options_.error_target > 0.0f);
+  pass_end_.assign(num_pixels, 0);
+  std::vector<int> pass_begin(num_pixels, 0);
+  bool more = done < total;
+  while (more && !cancel_.load()) {
     if (out_of_time()) {
       stop_reason = "time limit";
       break;
     }
     int this_pass = pass;
+    // Samples this pass may take over all pixels under the time limit.
+    uint64_t fit = std::numeric_limits<uint64_t>::max();
     if (options_.time_limit > 0.0 && seconds_per_pixel_sample > 0.0) {
       // Shrink the pass to what the remaining time allows.
       const double remaining = options_.time_limit - elapsed_seconds();
-      const double fit = remaining / (seconds_per_pixel_sample * std::max<size_t>(active, 1));
-      this_pass = std::max(1, std::min(pass, int(fit)));
+      fit = uint64_t(std::max(1.0, remaining / seconds_per_pixel_sample));
+      this_pass = std::max(1, std::min<int>(pass, int(std::min<uint64_t>(fit / std::max<size_t>(active, 1), 1 << 20))));
     }
-    const int end = std::min(total, done + this_pass);
+    uint64_t pass_samples = 0;
+    if (by_error && done >= min_adaptive) {
+      pass_samples = allocate_by_error(std::min<uint64_t>(fit, uint64_t(pass) * std::max<size_t>(active, 1)), pass);
+    } else {
+      const int end = std::min(total, done + this_pass);
+      for (size_t i = 0; i < num_pixels; ++i) {
+        pass_end_[i] = film_.active(i) ? std::max(end, film_.count(i)) : film_.count(i);
+        pass_samples += uint64_t(pass_end_[i] - film_.count(i));
+      }
+    }
+    for (size_t i = 0; i < num_pixels; ++i) pass_begin[i] = film_.count(i);
     const auto pass_start = std::chrono::steady_clock::now();
     std::atomic<bool> timed_out{false};
     arena.execute([&] {
@@ -166,16 +255,23 @@ void RenderSession::render() {
             timed_out.store(true, std::memory_order_relaxed);
             return;
           }
-          render_tile(t, done, end, c);
+          render_tile(t, c);
         }
       });
     });
     if (cancel_.load()) break;
     const double pass_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count();
-    if (!timed_out.load()) seconds_per_pixel_sample = pass_seconds / (double(end - done) * std::max<size_t>(active, 1));
-    done = end;
+    if (!timed_out.load() && pass_samples > 0) seconds_per_pixel_sample = pass_seconds / double(pass_samples);
+    // done: the fewest samples of a pixel still sampling (all pixels' count
+    // when uniform).
+    {
+      int fewest = total;
+      bool any = false;
+      for (size_t i = 0; i < num_pixels; ++i)
+        if (film_.active(i)) fewest = std::min(fewest, film_.count(i)), any = true;
+      done = any ? fewest : std::max(done, std::min(total, done + this_pass));
+    }
 
-    // Adaptive sampling: stop the pixels whose own samples say they converged.
     // Adaptive sampling. A pixel stops when under the threshold at two pass
     // boundaries in a row and so is every pixel around it (Cycles spreads
     // non-convergence to neighbours the same way, film_adaptive_sampling_
@@ -187,6 +283,9 @@ void RenderSession::render() {
       const int w = width(), h = height();
       for (size_t i = 0; i < num_pixels; ++i) {
         if (!film_.active(i)) continue;
+        // A pixel this pass gave nothing (error-driven passes) has nothing
+        // new to confirm.
+        if (film_.count(i) == pass_begin[i]) continue;
         converged_passes[i] = film_.pixel_error(i) < options_.adaptive_threshold ? std::min(converged_passes[i] + 1, 255) : 0;
       }
       for (int y = 0; y < h; ++y)
@@ -203,8 +302,9 @@ void RenderSession::render() {
             }
           if (all) stop_now[i] = 1;
         }
-      for (size_t i = 0; i < num_pixels; ++i)
+      for (size_t i = 0; i < num_pixels; ++i) {
         if (stop_now[i]) film_.deactivate(i), stop_now[i] = 0;
+      }
     }
     uint64_t taken = 0;
     active = 0;
@@ -249,6 +349,7 @@ void RenderSession::render() {
       break;
     }
     if (done > 1) pass = std::min(pass * 2, 16);
+    more = done < total;
   }
   PathCounters all;
   for (const PathCounters& c : counters) {
@@ -281,6 +382,12 @@ std::vector<float> RenderSession::pass_pixels(uint32_t pass) const {
       return pass_display_[b];
     }
   return {};
+}
+
+std::vector<int> RenderSession::sample_counts() const {
+  std::vector<int> counts(film_.size());
+  for (size_t i = 0; i < counts.size(); ++i) counts[i] = film_.count(i);
+  return counts;
 }
 
 RenderStats RenderSession::stats() const {

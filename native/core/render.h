@@ -66,10 +66,18 @@ class RenderSession {
   // rows bottom to top, as of the last finished pass; empty if not enabled.
   std::vector<float> pass_pixels(uint32_t pass) const;
   RenderStats stats() const;
+  // Samples taken per pixel of the region, rows bottom to top; call after render().
+  std::vector<int> sample_counts() const;
 
  private:
-  // Renders samples [sample_begin, sample_end) of the tile's active pixels.
-  void render_tile(int tile, int sample_begin, int sample_end, PathCounters& counters);
+  // Renders the tile's active pixels from their sample count up to
+  // pass_end_ (per pixel).
+  void render_tile(int tile, PathCounters& counters);
+  // The error-driven pass of adaptive sampling under a time limit or error
+  // target (render.cpp): spreads `budget` samples over the active pixels
+  // (setting pass_end_), at most max(step, its count) more per pixel and never past
+  // options_.samples; returns the samples given.
+  uint64_t allocate_by_error(uint64_t budget, int step);
   // The camera ray of pixel (px, py) of the full frame for the sampler's sample.
   Ray camera_ray(int px, int py, Sampler& sampler) const;
   // Scrambling seed offset of the error estimate's replicates (film.h).
@@ -86,6 +94,8 @@ class RenderSession {
   int x0_, y0_, x1_, y1_;
   int tiles_x_, tiles_y_;
   Film film_;
+  std::vector<int> pass_end_;  // per pixel: the sample count this pass renders it to
+  std::vector<double> weight_;  // scratch of allocate_by_error
   DataPasses data_passes_;  // the enabled passes besides Combined (none: nothing recorded)
 
   mutable std::mutex display_mutex_;

@@ -3,6 +3,7 @@
 // Correctness only, never wall-clock.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -153,6 +154,178 @@ TEST(Controls, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
               100.0 * double(r.stats.pixel_samples) / (256.0 * 32 * 32));
   EXPECT_LT(r.stats.pixel_samples, uint64_t(256) * 32 * 32);
   EXPECT_GT(r.stats.pixel_samples, uint64_t(16) * 32 * 32);
+}
+
+TEST(Controls, FilmSampleVarianceOfKnownSamples) {
+  // Samples (1,0,0), (3,0,0), (0,2,0), (0,0,4): per-channel means (1, 0.5, 1),
+  // unbiased variances 2, 1, 4 summed = 7.
+  Film film;
+  film.resize(2, 1, false);
+  const vec3 samples[] = {{1, 0, 0}, {3, 0, 0}, {0, 2, 0}, {0, 0, 4}};
+  for (int s = 0; s < 4; ++s) film.add(0, s, samples[s]);
+  film.set_count(0, 4);
+  EXPECT_NEAR(7.0, film.sample_variance(0), 1e-9);
+  // Constant samples: no variance; fewer than two samples: none known.
+  for (int s = 0; s < 5; ++s) film.add(1, s, vec3(0.25f, 0.5f, 2.0f));
+  film.set_count(1, 5);
+  EXPECT_NEAR(0.0, film.sample_variance(1), 1e-9);
+  Film one;
+  one.resize(1, 1, false);
+  one.add(0, 0, vec3(5.0f));
+  one.set_count(0, 1);
+  EXPECT_EQ(0.0, one.sample_variance(0));
+  // The half difference: class A of samples 0..3 is {2, 3} (Film::class_a),
+  // mean (0, 1, 2) against the full mean (1, 0.5, 1).
+  EXPECT_NEAR(1.0 + 0.25 + 1.0, film.half_difference_sq(0), 1e-6);
+}
+
+// Adaptive sampling with a budget (time limit or error target): after the
+// minimum, each pass goes to the pixels by estimated error; no pixel gets fewer
+// than the minimum or more than the samples setting.
+TEST(Controls, AdaptiveWithATimeLimitSpendsItByErrorWithinMinAndMaxSamples) {
+  Scene s;
+  fixtures::build_cornell_box(s, 32, 24);
+  RenderOptions opt;
+  opt.samples = 96;
+  opt.adaptive_threshold = 1e-4f;  // no pixel converges: the budget decides
+  opt.adaptive_min_samples = 16;
+  opt.time_limit = 60.0;  // ends by samples long before
+  RenderSession session(s, opt);
+  session.render();
+  const std::vector<int> counts = session.sample_counts();
+  const int lo = *std::min_element(counts.begin(), counts.end());
+  const int hi = *std::max_element(counts.begin(), counts.end());
+  std::printf("adaptive, time limit: samples per pixel %d .. %d, stopped by %s\n", lo, hi, session.stats().stop_reason);
+  EXPECT_GE(lo, opt.adaptive_min_samples);
+  EXPECT_LE(hi, opt.samples);
+  // Everything until every pixel has the most samples: then it ends by samples.
+  EXPECT_EQ(opt.samples, lo);
+  EXPECT_STREQ("samples", session.stats().stop_reason);
+  uint64_t sum = 0;
+  for (int c : counts) sum += uint64_t(c);
+  EXPECT_EQ(sum, session.stats().pixel_samples);
+}
+
+TEST(Controls, AdaptiveWithAnErrorTargetGivesNoisyPixelsMoreSamplesAndIsDeterministic) {
+  Scene s;
+  fixtures::build_cornell_box(s, 32, 24);
+  RenderOptions opt;
+  opt.samples = 1 << 16;
+  opt.adaptive_threshold = 1e-4f;
+  opt.adaptive_min_samples = 16;
+  opt.error_target = 0.05f;
+  opt.threads = 1;
+  RenderSession one(s, opt);
+  one.render();
+  opt.threads = 0;
+  opt.tile_size = 5;
+  RenderSession all(s, opt);
+  all.render();
+  EXPECT_STREQ("error target", one.stats().stop_reason);
+  const std::vector<int> counts = one.sample_counts();
+  EXPECT_EQ(counts, all.sample_counts());
+  const std::vector<float> px = one.pixels(), px_all = all.pixels();
+  EXPECT_EQ(0, std::memcmp(px.data(), px_all.data(), px.size() * sizeof(float)));
+  const int lo = *std::min_element(counts.begin(), counts.end());
+  const int hi = *std::max_element(counts.begin(), counts.end());
+  std::printf("adaptive, error target: samples per pixel %d .. %d\n", lo, hi);
+  EXPECT_GE(lo, opt.adaptive_min_samples);
+  EXPECT_GT(hi, 2 * lo);  // not uniform: the noisy pixels got more
+}
+
+// At equal total samples the error-driven allocation has a lower RMSE than
+// uniform sampling on the box (deterministic seeds, no timing).
+TEST(Controls, AdaptiveByErrorBeatsUniformAtEqualSamples) {
+  Scene s;
+  fixtures::build_cornell_box(s, 24, 16);
+  RenderOptions opt;
+  opt.seed = 4321;
+  opt.samples = 2048;
+  const std::vector<float> ref = render(s, opt).px;
+  double adaptive_mse = 0.0, uniform_mse = 0.0;
+  for (uint32_t seed = 0; seed < 3; ++seed) {
+    opt.seed = seed;
+    opt.samples = 1 << 16;
+    opt.adaptive_threshold = 0.01f;
+    opt.adaptive_min_samples = 16;
+    opt.error_target = 0.04f;
+    const Result a = render(s, opt);
+    const int spp = int(std::lround(double(a.stats.pixel_samples) / (24 * 16)));
+    opt.adaptive_threshold = 0.0f;
+    opt.error_target = 0.0f;
+    opt.samples = spp;
+    const Result u = render(s, opt);
+    const double ea = rmse(a.px, ref), eu = rmse(u.px, ref);
+    std::printf("seed %u: %d samples per pixel, RMSE adaptive %.5f uniform %.5f\n", seed, spp, ea, eu);
+    adaptive_mse += ea * ea, uniform_mse += eu * eu;
+  }
+  EXPECT_LT(adaptive_mse, uniform_mse);
+}
+
+// The image estimate on a synthetic film whose truth is known: every pixel's
+// samples are 1 + uniform noise (independent, so the replicates see the same
+// noise as the image), and one pixel off the replicate grid has a firefly. The
+// replicates alone cannot see it (the estimate was 0.2x the truth before the
+// firefly term); with it the estimate is within 1.5x.
+TEST(Controls, ErrorEstimateCountsFirefliesOffTheReplicateGrid) {
+  const int w = 32, h = 32, n = 64;
+  Film film;
+  film.resize(w, h, true);
+  ASSERT_EQ(2, film.replicate_stride());
+  uint32_t state = 12345;
+  auto noise = [&] {
+    state = state * 1664525u + 1013904223u;
+    return 0.5f * (float(state >> 8) / float(1 << 24) - 0.5f);
+  };
+  const int fx = 5, fy = 7;  // odd: not a replicate pixel
+  ASSERT_LT(film.replicate_slot(fx, fy), 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = size_t(y) * w + x;
+      const int slot = film.replicate_slot(x, y);
+      for (int s = 0; s < n; ++s) {
+        film.add(i, s, vec3(1.0f + noise(), 1.0f + noise(), 1.0f + noise()));
+        if (slot >= 0) film.add_replicate(slot, vec3(1.0f + noise(), 1.0f + noise(), 1.0f + noise()));
+      }
+      if (x == fx && y == fy) film.add(i, n, vec3(2000.0f));  // one firefly sample among n + 1
+      film.set_count(i, x == fx && y == fy ? n + 1 : n);
+    }
+  auto truth = [&] {
+    double mse = 0.0;
+    for (size_t i = 0; i < film.size(); ++i) {
+      const vec3 d = film.mean(i) - vec3(1.0f);
+      mse += double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+    }
+    return std::sqrt(mse / (3.0 * film.size()));  // the true mean is 1
+  };
+  const double t = truth();
+  const double estimate = film.estimated_relative_error(), replicates_only = film.estimated_relative_error(0.0);
+  std::printf("synthetic film with a firefly: true %.4f, estimate %.4f, replicates only %.4f\n", t, estimate, replicates_only);
+  EXPECT_LT(replicates_only, t / 1.5);
+  EXPECT_GT(estimate, t / 1.5);
+  EXPECT_LT(estimate, t * 1.5);
+  // Without the firefly, both are the replicates' estimate and honest.
+  Film plain;
+  plain.resize(w, h, true);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = size_t(y) * w + x;
+      const int slot = plain.replicate_slot(x, y);
+      for (int s = 0; s < n; ++s) {
+        plain.add(i, s, vec3(1.0f + noise(), 1.0f + noise(), 1.0f + noise()));
+        if (slot >= 0) plain.add_replicate(slot, vec3(1.0f + noise(), 1.0f + noise(), 1.0f + noise()));
+      }
+      plain.set_count(i, n);
+    }
+  double mse = 0.0;
+  for (size_t i = 0; i < plain.size(); ++i) {
+    const vec3 d = plain.mean(i) - vec3(1.0f);
+    mse += double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+  }
+  const double t_plain = std::sqrt(mse / (3.0 * plain.size()));
+  EXPECT_EQ(plain.estimated_relative_error(), plain.estimated_relative_error(0.0));
+  EXPECT_GT(plain.estimated_relative_error(), t_plain / 1.5);
+  EXPECT_LT(plain.estimated_relative_error(), t_plain * 1.5);
 }
 
 TEST(Controls, ErrorTargetStopsWhenTheEstimateIsBelowIt) {
