@@ -341,8 +341,10 @@ void compare(const Config& cfg) {
               "(> 1: Tessera faster). SAH cost: Tessera's tree as traversed, relative to the root box area "
               "(traversal cost 1, triangle cost 1): \"binary\" is the binary SAH tree before collapsing (per triangle), \"wide\" the tree that is traversed (one step per node, one per 4-triangle block). "
               "Tessera's default path on this CPU: %s (%s).\n\n",
-              cfg.runs, simd_level_name(cpu_simd_level()),
-              cpu_simd_level() == SimdLevel::AVX2 ? "BVH8, eight-wide AVX2 node test" : "BVH4, four-wide SSE2 node test");
+              cfg.runs, cpu_simd_level() != SimdLevel::AVX2 ? "sse2" : g_bvh8_avx512 ? "avx512" : "avx2",
+              cpu_simd_level() != SimdLevel::AVX2 ? "BVH4, four-wide SSE2 node test"
+              : g_bvh8_avx512 ? "BVH8, the AVX-512 kernel: eight-wide node test into mask registers, in-register child sort"
+                              : "BVH8, eight-wide AVX2 node test");
   std::string build_table =
       "| mesh | triangles | threads | Tessera build ms | Embree build ms | ratio | Tessera SAH (binary) | Tessera SAH (wide) | Tessera MB | Embree MB |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
