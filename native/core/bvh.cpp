@@ -428,17 +428,20 @@ struct FastBuilder {
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       Part& p = parts[k];
       const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
+      SSEBox lb, rb, lcb, rcb;  // locals: kept in registers
+      uint32_t left = 0;
       for (uint32_t i = b0; i < b1; ++i) {
         const __m128 c = centroid2(refs[i]);
         if (left_of(refs[i])) {
-          ++p.left;
-          p.lb.grow(lo_of(refs[i]), refs[i].hi);
-          p.lcb.grow(c, c);
+          ++left;
+          lb.grow(lo_of(refs[i]), refs[i].hi);
+          lcb.grow(c, c);
         } else {
-          p.rb.grow(lo_of(refs[i]), refs[i].hi);
-          p.rcb.grow(c, c);
+          rb.grow(lo_of(refs[i]), refs[i].hi);
+          rcb.grow(c, c);
         }
       }
+      p.left = left, p.lb = lb, p.rb = rb, p.lcb = lcb, p.rcb = rcb;
     });
     std::vector<uint32_t> loff(nblocks), roff(nblocks);
     uint32_t total_left = 0;
@@ -463,6 +466,39 @@ struct FastBuilder {
       std::copy(tmp + b0, tmp + b1, refs.get() + begin + b0);
     });
     return begin + total_left;
+  }
+
+  // In-place partition (Hoare), growing the children's boxes and centroid
+  // boxes on the way. They are kept in local vectors whose address is never
+  // taken, so they stay in registers (growing the SSEBox out-parameters
+  // directly went through memory, a store-to-load chain per reference).
+  template <typename LeftOf>
+  uint32_t serial_partition(uint32_t begin, uint32_t end, const LeftOf& left_of, SSEBox& lbox, SSEBox& rbox,
+                            SSEBox& lcbox, SSEBox& rcbox) {
+    __m128 llo = _mm_set1_ps(kInf), lhi = _mm_set1_ps(-kInf), lclo = llo, lchi = lhi;
+    __m128 rlo = llo, rhi = lhi, rclo = llo, rchi = lhi;
+    PrimRef* r = refs.get();
+    uint32_t i = begin, j = end;
+    for (;;) {
+      for (; i < j; ++i) {
+        const __m128 lo = r[i].lo, hi = r[i].hi;
+        if (!left_of(r[i])) break;
+        const __m128 l = xyz(lo), c = _mm_add_ps(l, hi);
+        llo = _mm_min_ps(llo, l), lhi = _mm_max_ps(lhi, hi);
+        lclo = _mm_min_ps(lclo, c), lchi = _mm_max_ps(lchi, c);
+      }
+      for (; i < j; --j) {
+        const __m128 lo = r[j - 1].lo, hi = r[j - 1].hi;
+        if (left_of(r[j - 1])) break;
+        const __m128 l = xyz(lo), c = _mm_add_ps(l, hi);
+        rlo = _mm_min_ps(rlo, l), rhi = _mm_max_ps(rhi, hi);
+        rclo = _mm_min_ps(rclo, c), rchi = _mm_max_ps(rchi, c);
+      }
+      if (i >= j) break;
+      std::swap(r[i], r[j - 1]);
+    }
+    lbox.grow(llo, lhi), lcbox.grow(lclo, lchi), rbox.grow(rlo, rhi), rcbox.grow(rclo, rchi);
+    return i;
   }
 
   void build(uint32_t node_index, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox, int depth) {
@@ -494,7 +530,7 @@ struct FastBuilder {
         // The binning's own arithmetic, on the split axis only.
         const __m128i pivot = _mm_set1_epi32(int(split.index));
         const int axis_bit = 1 << split.axis;
-        auto left_of = [&](const PrimRef& r) {
+        auto left_of = [cmin, scale, pivot, axis_bit](const PrimRef& r) {
           const __m128i bi = _mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(centroid2(r), cmin), scale));
           return (_mm_movemask_ps(_mm_castsi128_ps(_mm_cmplt_epi32(bi, pivot))) & axis_bit) != 0;
         };
@@ -502,26 +538,8 @@ struct FastBuilder {
           mid = parallel_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
           have_boxes = true;
         } else {
-        // In-place partition, growing the children's boxes on the way.
-        uint32_t i = begin, j = end;
-        for (;;) {
-          while (i < j && left_of(refs[i])) {
-            lbox.grow(lo_of(refs[i]), refs[i].hi);
-            const __m128 c = centroid2(refs[i]);
-            lcbox.grow(c, c);
-            ++i;
-          }
-          while (i < j && !left_of(refs[j - 1])) {
-            --j;
-            rbox.grow(lo_of(refs[j]), refs[j].hi);
-            const __m128 c = centroid2(refs[j]);
-            rcbox.grow(c, c);
-          }
-          if (i >= j) break;
-          std::swap(refs[i], refs[j - 1]);
-        }
-        mid = i;
-        have_boxes = true;
+          mid = serial_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
+          have_boxes = true;
         }
       }
     }
