@@ -232,10 +232,11 @@ void RenderSession::render() {
       this_pass = std::max(1, std::min<int>(pass, int(std::min<uint64_t>(fit / std::max<size_t>(active, 1), 1 << 20))));
     }
     uint64_t pass_samples = 0;
-    if (by_error && done >= min_adaptive) {
+    const bool error_pass = by_error && done >= min_adaptive;
+    const int end = std::min(total, done + this_pass);
+    if (error_pass) {
       pass_samples = allocate_by_error(std::min<uint64_t>(fit, uint64_t(pass) * std::max<size_t>(active, 1)), pass);
     } else {
-      const int end = std::min(total, done + this_pass);
       for (size_t i = 0; i < num_pixels; ++i) {
         pass_end_[i] = film_.active(i) ? std::max(end, film_.count(i)) : film_.count(i);
         pass_samples += uint64_t(pass_end_[i] - film_.count(i));
@@ -262,14 +263,16 @@ void RenderSession::render() {
     if (cancel_.load()) break;
     const double pass_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count();
     if (!timed_out.load() && pass_samples > 0) seconds_per_pixel_sample = pass_seconds / double(pass_samples);
-    // done: the fewest samples of a pixel still sampling (all pixels' count
-    // when uniform).
-    {
+    // done: the pass's sample count (uniform passes; tiles the time limit
+    // skipped keep fewer), or after error-driven passes the fewest samples of
+    // a pixel still sampling (the render goes on while one has fewer than total).
+    if (!error_pass) {
+      done = end;
+    } else {
       int fewest = total;
-      bool any = false;
       for (size_t i = 0; i < num_pixels; ++i)
-        if (film_.active(i)) fewest = std::min(fewest, film_.count(i)), any = true;
-      done = any ? fewest : std::max(done, std::min(total, done + this_pass));
+        if (film_.active(i)) fewest = std::min(fewest, film_.count(i));
+      done = fewest;
     }
 
     // Adaptive sampling. A pixel stops when under the threshold at two pass
