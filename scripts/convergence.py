@@ -273,6 +273,8 @@ for path in args.scenes:
              "wall time of the whole render call (sync/export, BVH, render, EXR write), so small sample counts "
              "are dominated by fixed costs, more so for Cycles. MSE against a reference includes the reference's "
              f"own noise (~ MSE(n) x n / {args.ref_samples}).", "",
+             "Adaptive sampling under a time limit against uniform sampling with more seeds, at equal time and equal "
+             "samples, and the error estimate on all shared scenes after its firefly term: `ADAPTIVE.md`.", "",
              "## Efficiency at Cycles' 64-sample error", "",
              "Tessera/Cycles = Cycles' time at 64 samples / the time Tessera needs for the same MSE against its own "
              "reference (= ratio of 1/(MSE x time) at equal MSE). Against its own reference each engine's error is its "
