@@ -14,6 +14,15 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DTESS
   -DPYTHON_EXECUTABLE="${TESSERA_PYTHON:-/usr/bin/python3}" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target bench_bvh >/dev/null
 MESHES=("$MESHES_DIR"/stanford-bunny.obj "$MESHES_DIR"/nefertiti.obj "$MESHES_DIR"/ogre.obj "$MESHES_DIR"/igea.ply)
+# The interior scene: modern_hall's triangles in world space as a render
+# traces them, with its camera (scripts/export_scene_mesh.py; needs Blender).
+SCENES_DIR=${TESSERA_SCENES:-$(dirname "$MESHES_DIR")/scenes}
+INTERIOR="$BUILD/modern_hall.ply"
+if [ ! -s "$INTERIOR" ] && command -v "${BLENDER:-blender}" >/dev/null && [ -f "$SCENES_DIR/modern_hall.blend" ]; then
+  "${BLENDER:-blender}" -b "$SCENES_DIR/modern_hall.blend" --factory-startup --python scripts/export_scene_mesh.py -- "$INTERIOR" >/dev/null 2>&1 ||
+    rm -f "$INTERIOR"
+fi
+if [ -s "$INTERIOR" ]; then MESHES+=("$INTERIOR"); else echo "bench_bvh: no Blender or modern_hall.blend: the interior scene is left out" >&2; fi
 ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --clock cpu --builder-threads 1 --builder-res 512 --builder-meshes stanford-bunny.obj,igea.ply "$@")
 REPEAT=${REPEAT:-3}
 OUT=docs/BVH_BENCHMARK.md
@@ -59,7 +68,7 @@ rm -rf "$RUNS_DIR"
   echo '```'
   echo
   echo "Machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, $(. /etc/os-release; echo "$PRETTY_NAME"), $(g++ --version | head -1)."
-  echo "Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo 3), Tessera built Release -O3 without -march=native (x86-64 baseline; the AVX2 BVH8 path is chosen at run time, here: $(grep -q avx2 /proc/cpuinfo && echo AVX2 || echo SSE2))."
+  echo "Embree $(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo 3), Tessera built Release -O3 without -march=native (x86-64 baseline; the BVH8 kernel is chosen at run time: AVX-512 where the CPU has AVX-512 F/VL/DQ/BW, else AVX2, else the SSE2 BVH4; here: $(grep -q avx512vl /proc/cpuinfo && grep -q avx512bw /proc/cpuinfo && grep -q avx512dq /proc/cpuinfo && echo AVX-512 || (grep -q avx2 /proc/cpuinfo && echo AVX2 || echo SSE2)))."
   echo "Each run reports, per figure, the median of --runs repetitions in one process; 1-thread traversal"
   echo "passes are timed by the thread's CPU time (--clock cpu: time the VM gives to other processes does not"
   echo "count), 2-thread passes and all builds by wall time. The two cores were shared with other engineers'"
@@ -67,7 +76,8 @@ rm -rf "$RUNS_DIR"
   echo "5-20%; compare the ratios (engines interleaved in one loop), not absolute figures with older runs."
   echo
   echo "Ray sets (identical arrays for both engines): primary = 1 pinhole ray per pixel of a res x res image"
-  echo "looking at the mesh; diffuse = one cosine-weighted bounce from each primary hit; random = res x res rays"
+  echo "looking at the mesh (modern_hall.ply, the interior scene: from the scene's own camera, inside the hall,"
+  echo "and the shadow rays' light just above that camera); diffuse = one cosine-weighted bounce from each primary hit; random = res x res rays"
   echo "from random points in the (1.2x) bounding box in uniformly random directions; shadow = any-hit rays"
   echo "from each primary hit to a point light. Both engines are driven by TBB parallel_for over chunks of 256"
   echo "rays in a task_arena of the given thread count."

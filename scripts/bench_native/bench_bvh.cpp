@@ -23,6 +23,7 @@
 #include <atomic>
 #include <chrono>
 #include <ctime>
+#include <fstream>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -218,17 +219,54 @@ struct RaySets {
   std::vector<RayArray> sets;  // primary, diffuse, random, shadow
 };
 
-RaySets make_rays(const Mesh& mesh, int res) {
+// A scene's own camera, from a PLY header line that
+// scripts/export_scene_mesh.py writes: "comment camera eye forward up fov_y".
+struct SceneCamera {
+  bool valid = false;
+  vec3 eye{0.0f}, forward{0.0f, 0.0f, -1.0f}, up{0.0f, 1.0f, 0.0f};
+  float fov_y = 0.0f;
+};
+
+SceneCamera read_scene_camera(const std::string& path) {
+  SceneCamera cam;
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  while (std::getline(in, line) && line != "end_header") {
+    std::istringstream s(line);
+    std::string a, b;
+    s >> a >> b;
+    if (a != "comment" || b != "camera") continue;
+    s >> cam.eye.x >> cam.eye.y >> cam.eye.z >> cam.forward.x >> cam.forward.y >> cam.forward.z >> cam.up.x >>
+        cam.up.y >> cam.up.z >> cam.fov_y;
+    cam.valid = bool(s) && cam.fov_y > 0.0f;
+  }
+  return cam;
+}
+
+// Primary rays from the scene's camera when the file has one (an interior,
+// seen from inside), else from a pinhole outside the mesh looking at it.
+RaySets make_rays(const Mesh& mesh, int res, const SceneCamera& camera = {}) {
   RaySets rs;
   const AABB b = mesh.bounds();
   const vec3 c = b.center();
   const float radius = 0.5f * glm::length(b.extent());
   // Pinhole camera outside the mesh, 45 degree field of view, looking at the centre.
-  const float fov = 45.0f * kPi / 180.0f;
-  const vec3 view_dir = glm::normalize(vec3(-0.35f, -0.25f, -1.0f));
-  const vec3 eye = c - view_dir * (radius / std::sin(0.5f * fov) * 1.05f);
-  const vec3 right = glm::normalize(glm::cross(view_dir, vec3(0, 1, 0)));
-  const vec3 up = glm::cross(right, view_dir);
+  float fov = 45.0f * kPi / 180.0f;
+  vec3 view_dir = glm::normalize(vec3(-0.35f, -0.25f, -1.0f));
+  vec3 eye = c - view_dir * (radius / std::sin(0.5f * fov) * 1.05f);
+  vec3 right = glm::normalize(glm::cross(view_dir, vec3(0, 1, 0)));
+  vec3 up = glm::cross(right, view_dir);
+  // The point light the shadow rays go to: above and beside an outside
+  // mesh; just above the camera inside a scene (the room the camera sees).
+  vec3 light = c + radius * vec3(1.5f, 3.0f, 2.0f);
+  if (camera.valid) {
+    fov = camera.fov_y;
+    view_dir = glm::normalize(camera.forward);
+    eye = camera.eye;
+    right = glm::normalize(glm::cross(view_dir, camera.up));
+    up = glm::cross(right, view_dir);
+    light = eye + 0.02f * radius * up;
+  }
   const float tan_half = std::tan(0.5f * fov);
   RayArray primary;
   primary.kind = "primary";
@@ -249,7 +287,6 @@ RaySets make_rays(const Mesh& mesh, int res) {
   shadow.kind = "shadow";
   shadow.shadow = true;
   random.kind = "random";
-  const vec3 light = c + radius * vec3(1.5f, 3.0f, 2.0f);
   const float eps = 1e-4f * radius;
   for (size_t i = 0; i < primary.size(); ++i) {
     if (ref.t[i] == kInf) continue;
@@ -392,7 +429,7 @@ void compare(const Config& cfg) {
       build_table += line;
       std::fprintf(stderr, "%s", line);
     }
-    RaySets rs = make_rays(mesh, cfg.res);
+    RaySets rs = make_rays(mesh, cfg.res, read_scene_camera(path));
     for (const RayArray& rays : rs.sets) {
       for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
         const int nt = cfg.threads[ti];
@@ -445,7 +482,7 @@ void trace_only(const Config& cfg) {
     RTCDevice dev = rtcNewDevice("threads=1");
     EmbreeScene es;
     if (cfg.engine == "embree") embree_build(dev, soup, es);
-    RaySets rs = make_rays(mesh, cfg.res);
+    RaySets rs = make_rays(mesh, cfg.res, read_scene_camera(path));
     if (getenv("MISS")) {  // rays that miss the root box: the per-ray cost outside the traversal loop
       const vec3 c = mesh.bounds().center();
       const float radius = glm::length(mesh.bounds().extent());
@@ -504,7 +541,7 @@ void ab(const Config& cfg) {
     std::printf("%s: nodes %u / %u, blocks %u / %u, wide SAH %.2f / %.2f, MB %.1f / %.1f (base / new)\n",
                 basename_of(path).c_str(), nodes(base), nodes(mesh), blocks(base), blocks(mesh), wide_sah(base),
                 wide_sah(mesh), base.memory_bytes() / 1048576.0, mesh.memory_bytes() / 1048576.0);
-    RaySets rs = make_rays(mesh, cfg.res);
+    RaySets rs = make_rays(mesh, cfg.res, read_scene_camera(path));
     for (const RayArray& rays : rs.sets) {
       if (rays.kind != cfg.kind && cfg.kind != "all") continue;
       Results a, b;
@@ -549,7 +586,7 @@ void builders(const Config& cfg) {
         std::find(cfg.builder_meshes.begin(), cfg.builder_meshes.end(), name) == cfg.builder_meshes.end())
       continue;
     TriangleSoup soup = load_mesh_file(path);
-    RaySets rs = make_rays(tessera_build(soup, BuildOptions{}), cfg.builder_res);
+    RaySets rs = make_rays(tessera_build(soup, BuildOptions{}), cfg.builder_res, read_scene_camera(path));
     struct Variant { std::string label; BuildOptions opt; };
     std::vector<Variant> variants;
     { BuildOptions o; o.method = SplitMethod::Midpoint; variants.push_back({"midpoint", o}); }
