@@ -8,6 +8,10 @@
 //             (one engine only, for perf)
 //   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
 //             (default tree against one built with those options, same traversal, alternating)
+//   bench_bvh --mode ab --ab-base max-leaf=8,sah-block=4,bins=32,tri-cost=1.5,drop-degenerate ...
+//             (binary build options of the base tree; drop-degenerate: without triangles
+//             with two equal vertices, which never hit)
+//   bench_bvh --mode stats mesh...   (the BVH8's node fill, leaf and block sizes)
 //   bench_bvh --mode ab --ab-base avx2-kernel ...
 //             (the default tree traced by the AVX2 BVH8 kernel against the default (AVX-512) kernel)
 //
@@ -505,8 +509,8 @@ void trace_only(const Config& cfg) {
       {  // per ray over all passes; node visits by number of children hit
         WideCounters& c = g_wide_counters;
         const double n = double(c.rays);
-        std::printf("  per ray: nodes %.2f, children hit %.2f, leaves %.2f, blocks %.2f, sign pass %.2f, t pass %.2f\n  visits by hits:",
-                    c.nodes / n, c.hits_children / n, c.leaves / n, c.blocks / n, c.sign_pass / n, c.t_pass / n);
+        std::printf("  per ray: nodes %.2f, children hit %.2f, leaves %.2f, blocks %.2f, sign pass %.2f, t pass %.2f, zero-edge blocks %.3f\n  visits by hits:",
+                    c.nodes / n, c.hits_children / n, c.leaves / n, c.blocks / n, c.sign_pass / n, c.t_pass / n, c.zero_path / n);
         for (int k = 0; k <= 8; ++k) std::printf(" %d:%.1f%%", k, 100.0 * c.hit_hist[k] / double(c.nodes));
         std::printf("\n");
         c = WideCounters{};
@@ -531,7 +535,34 @@ void ab(const Config& cfg) {
     BuildOptions base_opt;
     if (cfg.ab_base.find("no-collapse") != std::string::npos) base_opt.collapse_small_subtrees = false;
     if (cfg.ab_base.find("separate-leaves") != std::string::npos) base_opt.leaves_next_to_parent = false;
-    const Mesh base = tessera_build(soup, base_opt);
+    // max-leaf=N, sah-block=N, bins=N, tri-cost=X: the binary build's options.
+    auto opt_value = [&](const char* key) -> const char* {
+      const size_t at = cfg.ab_base.find(key);
+      return at == std::string::npos ? nullptr : cfg.ab_base.c_str() + at + std::strlen(key);
+    };
+    if (const char* v = opt_value("max-leaf=")) base_opt.max_leaf_size = std::atoi(v);
+    if (const char* v = opt_value("sah-block=")) base_opt.sah_block_size = std::atoi(v);
+    if (const char* v = opt_value("bins=")) base_opt.bins = std::atoi(v);
+    if (const char* v = opt_value("tri-cost=")) base_opt.intersection_cost = float(std::atof(v));
+    // drop-degenerate: the base tree leaves out triangles with two equal
+    // vertices (the watertight test never hits them: one edge function is
+    // zero and the other two are exact opposites), as a build could.
+    TriangleSoup base_soup = soup;
+    if (cfg.ab_base.find("drop-degenerate") != std::string::npos) {
+      base_soup.indices.clear();
+      const float* p = soup.positions.data();
+      auto same = [&](uint32_t a, uint32_t b) {
+        return p[3 * a] == p[3 * b] && p[3 * a + 1] == p[3 * b + 1] && p[3 * a + 2] == p[3 * b + 2];
+      };
+      for (size_t t = 0; t < soup.num_triangles(); ++t) {
+        const uint32_t* i = &soup.indices[3 * t];
+        if (same(i[0], i[1]) || same(i[1], i[2]) || same(i[0], i[2])) continue;
+        base_soup.indices.insert(base_soup.indices.end(), i, i + 3);
+      }
+      std::printf("drop-degenerate: %zu of %zu triangles left out\n", soup.num_triangles() - base_soup.num_triangles(),
+                  soup.num_triangles());
+    }
+    const Mesh base = tessera_build(base_soup, base_opt);
     // avx2-kernel: the base passes run the AVX2 BVH8 traversal instead of the AVX-512 one.
     const bool new_kernel = g_bvh8_avx512;
     const bool base_kernel = cfg.ab_base.find("avx2-kernel") != std::string::npos ? false : new_kernel;
@@ -567,6 +598,55 @@ void ab(const Config& cfg) {
                   rays.size() / median(sa) * 1e-6, median(ratio), bad, inexact);
       std::fflush(stdout);
     }
+  }
+}
+
+// --mode stats: the default BVH8's shape: nodes by child count, leaves by
+// block count, triangles per block (distinct, the rest repeat the last),
+// and the depth of the leaves.
+void tree_stats(const Config& cfg) {
+  for (const std::string& path : cfg.meshes) {
+    TriangleSoup soup = load_mesh_file(path);
+    const Mesh mesh = tessera_build(soup, BuildOptions{});
+    if (mesh.width() != 8) continue;
+    const BVH8& b = mesh.bvh8;
+    size_t kids[9] = {}, leaf_blocks[9] = {}, lanes[5] = {}, leaves = 0, nodes = 0, depth_sum = 0, tris = 0;
+    std::vector<std::pair<uint32_t, int>> todo{{0u, 0}};
+    while (!todo.empty()) {
+      auto [ref, depth] = todo.back();
+      todo.pop_back();
+      const BVH8Node& n = b.node(ref);
+      ++nodes;
+      ++kids[n.num_children];
+      for (int c = 0; c < 8; ++c) {
+        const uint32_t r = n.child[c];
+        if (r == kBVH4EmptyChild) continue;
+        if (!bvh4_is_leaf(r)) {
+          todo.push_back({r, depth + 1});
+          continue;
+        }
+        ++leaves;
+        depth_sum += depth + 1;
+        ++leaf_blocks[bvh4_leaf_blocks(r)];
+        const Tri4* t = b.blocks(r);
+        for (uint32_t k = 0; k < bvh4_leaf_blocks(r); ++k) {
+          int distinct = 1;
+          for (int l = 1; l < 4; ++l) distinct += t[k].prim[l] != t[k].prim[l - 1];
+          ++lanes[distinct];
+          tris += distinct;
+        }
+      }
+    }
+    std::printf("%s: %zu triangles, %zu nodes, %zu leaves (mean depth %.2f), %zu blocks, %.2f triangles per block, wide SAH %.2f, binary SAH %.2f\n",
+                basename_of(path).c_str(), soup.num_triangles(), nodes, leaves, double(depth_sum) / leaves,
+                size_t(b.num_blocks), double(tris) / b.num_blocks, sah_cost(b), mesh_sah_cost(mesh));
+    std::printf("  nodes by children:");
+    for (int k = 1; k <= 8; ++k) std::printf(" %d:%.1f%%", k, 100.0 * kids[k] / nodes);
+    std::printf("\n  leaves by blocks:");
+    for (int k = 1; k <= 8; ++k) if (leaf_blocks[k]) std::printf(" %d:%.1f%%", k, 100.0 * leaf_blocks[k] / leaves);
+    std::printf("\n  blocks by triangles:");
+    for (int k = 1; k <= 4; ++k) std::printf(" %d:%.1f%%", k, 100.0 * lanes[k] / b.num_blocks);
+    std::printf("\n");
   }
 }
 
@@ -671,5 +751,6 @@ int main(int argc, char** argv) {
   if (cfg.mode == "builders" || cfg.mode == "all") builders(cfg);
   if (cfg.mode == "trace") trace_only(cfg);
   if (cfg.mode == "ab") ab(cfg);
+  if (cfg.mode == "stats") tree_stats(cfg);
   return 0;
 }

@@ -9,9 +9,11 @@
 #include "core/mesh.h"
 #include "core/simd.h"
 #include "core/traverse.h"
+#include "core/simd_tri4.h"
 #include "core/triangle.h"
 
 using namespace tessera;
+
 
 namespace {
 const vec3 P0(0, 0, 0), P1(1, 0, 0), P2(0, 1, 0);
@@ -346,6 +348,117 @@ TEST(Triangle, Bvh8HitsEqualBvh4BitForBit) {
     ASSERT_EQ(occluded_mesh(m4, o, d, 0.3f), occluded_mesh(m8, o, d, 0.3f)) << i;
   }
   EXPECT_GT(hits, 10000);
+}
+
+// Zero-area triangles (two equal vertices, or three in a line) and rays
+// through grid vertices and edges make edge functions exactly zero: the Tri4
+// test redoes those lanes' edge functions in double, as the scalar test does.
+// Every kernel's closest hit is the scalar test's (nearest t over all
+// triangles; t, u, v of the triangle found, bit for bit), any hit agrees.
+TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
+  const int n = 12;
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) pos.insert(pos.end(), {x / float(n), y / float(n), 0.125f * (x % 2)});
+  auto id = [&](int x, int y) { return uint32_t(y * (n + 1) + x); };
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y), id(x + 1, y + 1), id(x, y + 1)});
+      if ((x + y) % 3 == 0) idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 1, y)});  // two equal vertices
+      if ((x + y) % 5 == 0 && x + 2 <= n) idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 2, y)});  // in a line
+    }
+  MeshInput in;
+  in.positions = pos.data();
+  in.num_vertices = pos.size() / 3;
+  in.indices = idx.data();
+  in.num_triangles = idx.size() / 3;
+  std::vector<std::pair<int, bool>> kernels{{4, false}};
+  if (cpu_simd_level() == SimdLevel::AVX2) kernels.push_back({8, false});
+  if (cpu_has_avx512()) kernels.push_back({8, true});
+  const bool saved_kernel = g_bvh8_avx512;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  int lane_hits = 0;
+  for (auto [width, avx512] : kernels) {
+    g_bvh8_avx512 = avx512;
+    BuildOptions opt;
+    opt.bvh_width = width;
+    const Mesh m = build_mesh(in, opt);
+    ASSERT_EQ(m.width(), width);
+    int hits = 0, near_miss = 0;
+    for (int i = 0; i < 20000; ++i) {
+      // Through a grid vertex or a point on a grid edge, from above or below.
+      const int gx = int(rng() % (4 * n + 1)), gy = (i & 1) ? 4 * int(rng() % (n + 1)) : int(rng() % (4 * n + 1));
+      const vec3 target(gx / float(4 * n), gy / float(4 * n), (gx % 8 == 4) ? 0.125f : 0.0f);
+      vec3 d(0.2f * u(rng), 0.2f * u(rng), i % 3 ? -1.0f : 1.0f);
+      if (i % 4 == 0) d.x = 0.0f;
+      if (i % 6 == 0) d = vec3(u(rng), 0.0f, 0.05f * u(rng));  // grazing
+      const vec3 o = target - 2.0f * d;
+      const RayShear sh(d);
+      float t_ref = kInf;
+      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+        TriangleHit th;
+        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th))
+          t_ref = th.t;
+      }
+      for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+        float tmax = kInf;
+        MeshHit h;
+        const bool f = intersect_mesh(m, o, d, tmax, h, order);
+        ASSERT_EQ(f, t_ref != kInf) << i << " width " << width << (avx512 ? " avx512" : "");
+        if (!f) continue;
+        TriangleHit th;
+        const vec3* v = &m.tri_verts[3 * size_t(h.prim)];
+        ASSERT_TRUE(intersect_triangle(v[0], v[1], v[2], o, sh, kInf, th)) << i;
+        ASSERT_EQ(h.t, th.t) << i;
+        ASSERT_EQ(h.u, th.u) << i;
+        ASSERT_EQ(h.v, th.v) << i;
+        // The nearest hit, or (where triangles meet at a vertex) one an ulp
+        // or so farther: a box whose entry distance rounds above the hit so
+        // far is culled, though a triangle in it may round below.
+        ASSERT_LE(h.t - t_ref, 1e-6f * t_ref) << i;
+        near_miss += h.t != t_ref;
+        hits += order == TraversalOrder::Ordered;
+      }
+      ASSERT_EQ(occluded_mesh(m, o, d, kInf), t_ref != kInf) << i;
+      // The Tri4 test (SSE2 compilation) against the scalar one, lane by
+      // lane, over every block of four triangles (zero lanes included).
+      if (width == 4 && i % 10 == 0) {
+        const size_t num = m.tri_verts.size() / 3;
+        const TriRay4 r4(o, d);
+        for (size_t k = 0; k < num; k += 4) {
+          Tri4 blk;
+          for (int l = 0; l < 4; ++l) {
+            const size_t j = std::min(k + l, num - 1);
+            for (int c = 0; c < 3; ++c)
+              for (int a = 0; a < 3; ++a) blk.v[c][a][l] = m.tri_verts[3 * j + c][a];
+            blk.prim[l] = uint32_t(j);
+          }
+          __m128 t4, u4, v4;
+          const int mask = intersect_tri4(blk, r4, _mm_set1_ps(kInf), t4, u4, v4);
+          alignas(16) float ts[4], us[4], vs[4];
+          _mm_store_ps(ts, t4), _mm_store_ps(us, u4), _mm_store_ps(vs, v4);
+          for (int l = 0; l < 4; ++l) {
+            const size_t j = std::min(k + l, num - 1);
+            TriangleHit th;
+            const bool hit = intersect_triangle(m.tri_verts[3 * j], m.tri_verts[3 * j + 1], m.tri_verts[3 * j + 2], o, sh, kInf, th);
+            ASSERT_EQ(bool(mask >> l & 1), hit) << i << " " << j;
+            if (hit) {
+              ASSERT_EQ(ts[l], th.t) << i << " " << j;
+              ASSERT_EQ(us[l], th.u) << i << " " << j;
+              ASSERT_EQ(vs[l], th.v) << i << " " << j;
+              ++lane_hits;
+            }
+          }
+        }
+      }
+    }
+    EXPECT_GT(hits, 5000) << "width " << width;
+    EXPECT_LT(near_miss, hits / 100) << "width " << width;
+  }
+  EXPECT_GT(lane_hits, 1000);
+  g_bvh8_avx512 = saved_kernel;
 }
 
 // RayShear picks its axes without branches (a table over max_dimension's
