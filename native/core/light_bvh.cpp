@@ -6,6 +6,9 @@
 #include <emmintrin.h>
 #include <tbb/parallel_invoke.h>
 
+#include "light_importance_simd.h"
+#include "simd.h"
+
 namespace tessera {
 
 namespace {
@@ -163,7 +166,7 @@ float ImportanceBounds::importance(const vec3& p, const vec3& n) const {
   return std::max(imp, 0.0f);
 }
 
-void ImportanceBounds4::set(int k, const ImportanceBounds& b) {
+void ImportanceBounds8::set(int k, const ImportanceBounds& b) {
   cx[k] = b.centre.x, cy[k] = b.centre.y, cz[k] = b.centre.z;
   wx[k] = b.w.x, wy[k] = b.w.y, wz[k] = b.w.z;
   phi[k] = b.phi, cos_o[k] = b.cos_theta_o, sin_o[k] = b.sin_theta_o, cos_e[k] = b.cos_theta_e;
@@ -172,64 +175,42 @@ void ImportanceBounds4::set(int k, const ImportanceBounds& b) {
 }
 
 namespace {
-
-// SSE2 (every x86-64 CPU) helpers for ImportanceBounds4::importance.
-inline __m128 blend(__m128 mask, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
-inline __m128 sqrt0(__m128 x) { return _mm_sqrt_ps(_mm_max_ps(x, _mm_setzero_ps())); }  // safe_sqrt
-// cos(max(0, a - b)) and sin(max(0, a - b)), as cos_sub_clamped / sin_sub_clamped.
-inline __m128 cos_sub(__m128 sin_a, __m128 cos_a, __m128 sin_b, __m128 cos_b) {
-  return blend(_mm_cmpgt_ps(cos_a, cos_b), _mm_set1_ps(1.0f),
-                _mm_add_ps(_mm_mul_ps(cos_a, cos_b), _mm_mul_ps(sin_a, sin_b)));
-}
-inline __m128 sin_sub(__m128 sin_a, __m128 cos_a, __m128 sin_b, __m128 cos_b) {
-  return _mm_andnot_ps(_mm_cmpgt_ps(cos_a, cos_b), _mm_sub_ps(_mm_mul_ps(sin_a, cos_b), _mm_mul_ps(cos_a, sin_b)));
-}
-
+struct Sse2Ops {  // every x86-64 CPU
+  using T = __m128;
+  static T load(const float* x) { return _mm_load_ps(x); }
+  static T bits(const uint32_t* x) { return _mm_castsi128_ps(_mm_load_si128(reinterpret_cast<const __m128i*>(x))); }
+  static void store(float* x, T v) { _mm_storeu_ps(x, v); }
+  static T set1(float x) { return _mm_set1_ps(x); }
+  static T abs_mask() { return _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)); }
+  static T add(T a, T b) { return _mm_add_ps(a, b); }
+  static T sub(T a, T b) { return _mm_sub_ps(a, b); }
+  static T mul(T a, T b) { return _mm_mul_ps(a, b); }
+  static T div(T a, T b) { return _mm_div_ps(a, b); }
+  static T sqrt(T a) { return _mm_sqrt_ps(a); }
+  static T max(T a, T b) { return _mm_max_ps(a, b); }
+  static T and_(T a, T b) { return _mm_and_ps(a, b); }
+  static T andnot(T a, T b) { return _mm_andnot_ps(a, b); }
+  static T or_(T a, T b) { return _mm_or_ps(a, b); }
+  static T cmpgt(T a, T b) { return _mm_cmpgt_ps(a, b); }
+  static T cmplt(T a, T b) { return _mm_cmplt_ps(a, b); }
+};
 }  // namespace
 
-// The same operations as ImportanceBounds::importance, in the same order,
-// one lane per child.
-void ImportanceBounds4::importance(const vec3& p, const vec3& n, float out[4]) const {
-  const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
-  const __m128 tx = _mm_sub_ps(_mm_set1_ps(p.x), _mm_load_ps(cx));
-  const __m128 ty = _mm_sub_ps(_mm_set1_ps(p.y), _mm_load_ps(cy));
-  const __m128 tz = _mm_sub_ps(_mm_set1_ps(p.z), _mm_load_ps(cz));
-  const __m128 dist2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(tx, tx), _mm_mul_ps(ty, ty)), _mm_mul_ps(tz, tz));
-  const __m128 d2 = _mm_max_ps(dist2, _mm_load_ps(min_dist2));
-  const __m128 away = _mm_cmpgt_ps(dist2, zero);
-  const __m128 inv_len = _mm_and_ps(away, _mm_div_ps(one, _mm_sqrt_ps(dist2)));
-  const __m128 wi_x = _mm_mul_ps(tx, inv_len), wi_y = _mm_mul_ps(ty, inv_len);
-  const __m128 wi_z = blend(away, _mm_mul_ps(tz, inv_len), one);
-  __m128 cos_w = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_load_ps(wx), wi_x), _mm_mul_ps(_mm_load_ps(wy), wi_y)),
-                            _mm_mul_ps(_mm_load_ps(wz), wi_z));
-  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  const __m128 two = _mm_castsi128_ps(_mm_load_si128(reinterpret_cast<const __m128i*>(two_sided)));
-  cos_w = blend(two, _mm_and_ps(cos_w, abs_mask), cos_w);
-  const __m128 sin_w = sqrt0(_mm_sub_ps(one, _mm_mul_ps(cos_w, cos_w)));
-  const __m128 r2 = _mm_load_ps(radius2);
-  const __m128 inside = _mm_cmplt_ps(dist2, r2);
-  const __m128 sin2_b = _mm_andnot_ps(inside, _mm_mul_ps(r2, _mm_mul_ps(inv_len, inv_len)));
-  const __m128 cos_b = blend(inside, _mm_set1_ps(-1.0f), sqrt0(_mm_sub_ps(one, sin2_b)));
-  const __m128 sin_b = _mm_sqrt_ps(sin2_b);
-  const __m128 co = _mm_load_ps(cos_o), so = _mm_load_ps(sin_o);
-  const __m128 cos_x = cos_sub(sin_w, cos_w, so, co), sin_x = sin_sub(sin_w, cos_w, so, co);
-  const __m128 cos_p = cos_sub(sin_x, cos_x, sin_b, cos_b);
-  const __m128 ph = _mm_load_ps(phi);
-  const __m128 lit = _mm_and_ps(_mm_cmpgt_ps(cos_p, _mm_load_ps(cos_e)), _mm_cmpgt_ps(ph, zero));
-  __m128 imp = _mm_div_ps(_mm_mul_ps(ph, cos_p), d2);
-  if (n != vec3(0.0f)) {
-    const __m128 dn = _mm_add_ps(_mm_add_ps(_mm_mul_ps(wi_x, _mm_set1_ps(n.x)), _mm_mul_ps(wi_y, _mm_set1_ps(n.y))),
-                                 _mm_mul_ps(wi_z, _mm_set1_ps(n.z)));
-    const __m128 cos_i = _mm_and_ps(dn, abs_mask);
-    const __m128 sin_i = sqrt0(_mm_sub_ps(one, _mm_mul_ps(cos_i, cos_i)));
-    imp = _mm_mul_ps(imp, cos_sub(sin_i, cos_i, sin_b, cos_b));
-  }
-  // max(imp, 0) also turns a NaN (a light of zero size exactly at p) into 0.
-  _mm_storeu_ps(out, _mm_and_ps(lit, _mm_max_ps(imp, zero)));
+void ImportanceBounds8::importance_sse2(const vec3& p, const vec3& n, float out[8]) const {
+  ImportanceLanes<Sse2Ops>::eval(*this, 0, p, n, out);
+  ImportanceLanes<Sse2Ops>::eval(*this, 4, p, n, out);
+}
+
+void ImportanceBounds8::importance(const vec3& p, const vec3& n, float out[8]) const {
+  static const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
+  if (avx2)
+    importance_avx2(p, n, out);
+  else
+    importance_sse2(p, n, out);
 }
 
 // Builds the binary SAOH tree over the lights, then collapses it into the
-// 4-wide nodes of `bvh`.
+// kLightBVHWidth-wide nodes of `bvh`.
 struct LightBVH::Builder {
   struct BinaryNode {
     BuildBounds bounds;
@@ -346,19 +327,21 @@ void LightBVH::Builder::build_binary(std::vector<uint32_t>& ids, size_t begin, s
   binary[node].bounds = union_bounds(binary[left].bounds, binary[right].bounds);
 }
 
-// One 4-wide node from binary node b: its two children, then the interior
+// One wide node from binary node b: its two children, then the interior
 // child with the largest box opened in its place while there is room
-// (the usual BVH2 -> BVH4 collapse). A lone light makes a root of one lane.
+// (the usual BVH2 -> BVH8 collapse). A lone light makes a root of one lane.
+// Eight lanes rather than four: log8 instead of log4 levels to walk per
+// sample (10,000 emitters: 4.4 instead of 6.6), each weighed in one AVX2 pass.
 uint32_t LightBVH::Builder::collapse(uint32_t b, uint32_t parent, int parent_lane) {
   std::vector<Node>& nodes = bvh.nodes_;
   const uint32_t node = uint32_t(nodes.size());
   nodes.emplace_back();
   nodes[node].parent = parent;
   nodes[node].parent_lane = uint8_t(parent_lane);
-  uint32_t lanes[4] = {b};
+  uint32_t lanes[kLightBVHWidth] = {b};
   int count = 1;
   if (!binary[b].leaf) lanes[0] = binary[b].left, lanes[1] = binary[b].right, count = 2;
-  while (count < 4) {
+  while (count < kLightBVHWidth) {
     int open = -1;
     float best = -1.0f;
     for (int k = 0; k < count; ++k) {
@@ -376,7 +359,7 @@ uint32_t LightBVH::Builder::collapse(uint32_t b, uint32_t parent, int parent_lan
     if (c.leaf) {
       nodes[node].child[k] = c.left;
       nodes[node].leaf_mask |= uint8_t(1u << k);
-      bvh.place_[c.left] = node * 4 + uint32_t(k);
+      bvh.place_[c.left] = node * kLightBVHWidth + uint32_t(k);
     } else {
       const uint32_t child = collapse(lanes[k], node, k);
       nodes[node].child[k] = child;
@@ -385,24 +368,32 @@ uint32_t LightBVH::Builder::collapse(uint32_t b, uint32_t parent, int parent_lan
   return node;
 }
 
+// The sum of a node's lane importances, pairwise (the same in sample and pmf).
+static float lane_sum(const float imp[kLightBVHWidth]) {
+  return ((imp[0] + imp[1]) + (imp[2] + imp[3])) + ((imp[4] + imp[5]) + (imp[6] + imp[7]));
+}
+
 bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf, float* u_remapped) const {
   if (nodes_.empty()) return false;
   uint32_t node = 0;
   float prob = 1.0f;
   for (;;) {
     const Node& nd = nodes_[node];
-    alignas(16) float imp[4];
+    alignas(32) float imp[kLightBVHWidth];
     nd.ib.importance(p, n, imp);
-    const float sum = (imp[0] + imp[1]) + (imp[2] + imp[3]);
+    const float sum = lane_sum(imp);
     if (!(sum > 0.0f)) return false;
     // The lane whose share of [0, sum) holds u * sum; u is rescaled to [0,1)
-    // within it for the next level (pbrt-v4 SampleDiscrete).
-    // Without branches on the data: k counts the running sums x has passed
-    // (a lane without importance repeats the sum before it, so it is passed
-    // with it); only x rounded up to the top can land on an empty lane.
+    // within it for the next level (pbrt-v4 SampleDiscrete). Without
+    // branches on the data: k counts the running sums x has passed (a lane
+    // without importance repeats the sum before it, so it is passed with
+    // it); only x rounded up to the top can land on an empty lane.
     const float x = u * sum;
-    const float c[3] = {imp[0], imp[0] + imp[1], (imp[0] + imp[1]) + imp[2]};
-    int k = int(x >= c[0]) + int(x >= c[1]) + int(x >= c[2]);
+    float c[kLightBVHWidth - 1];
+    c[0] = imp[0];
+    for (int j = 1; j < kLightBVHWidth - 1; ++j) c[j] = c[j - 1] + imp[j];
+    int k = 0;
+    for (int j = 0; j < kLightBVHWidth - 1; ++j) k += int(x >= c[j]);
     while (imp[k] <= 0.0f) --k;
     const float below = k == 0 ? 0.0f : c[k - 1];
     prob *= imp[k] / sum;
@@ -420,13 +411,13 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
 
 float LightBVH::pmf(const vec3& p, const vec3& n, uint32_t light) const {
   if (light >= place_.size() || place_[light] == ~0u) return 0.0f;
-  uint32_t node = place_[light] / 4, lane = place_[light] % 4;
+  uint32_t node = place_[light] / kLightBVHWidth, lane = place_[light] % kLightBVHWidth;
   float prob = 1.0f;
   for (;;) {
-    alignas(16) float imp[4];
+    alignas(32) float imp[kLightBVHWidth];
     nodes_[node].ib.importance(p, n, imp);
     if (!(imp[lane] > 0.0f)) return 0.0f;
-    prob *= imp[lane] / ((imp[0] + imp[1]) + (imp[2] + imp[3]));
+    prob *= imp[lane] / lane_sum(imp);
     if (node == 0) return prob;
     lane = nodes_[node].parent_lane;
     node = nodes_[node].parent;

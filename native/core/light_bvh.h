@@ -51,18 +51,22 @@ struct ImportanceBounds {
 // Four ImportanceBounds side by side, one SSE lane each (structure of
 // arrays), so that a node's children are weighed in one pass. Lanes without
 // a child have phi 0 and importance 0.
-struct alignas(16) ImportanceBounds4 {
-  float cx[4] = {}, cy[4] = {}, cz[4] = {}, wx[4] = {}, wy[4] = {}, wz[4] = {};
-  float phi[4] = {}, cos_o[4] = {}, sin_o[4] = {}, cos_e[4] = {}, radius2[4] = {}, min_dist2[4] = {};
-  uint32_t two_sided[4] = {};  // ~0u in a two-sided lane
+// The bounds of a light BVH node's children, one SIMD lane each.
+constexpr int kLightBVHWidth = 8;
+struct alignas(32) ImportanceBounds8 {
+  float cx[8] = {}, cy[8] = {}, cz[8] = {}, wx[8] = {}, wy[8] = {}, wz[8] = {};
+  float phi[8] = {}, cos_o[8] = {}, sin_o[8] = {}, cos_e[8] = {}, radius2[8] = {}, min_dist2[8] = {};
+  uint32_t two_sided[8] = {};  // ~0u in a two-sided lane
 
   void set(int lane, const ImportanceBounds& b);
-  // ImportanceBounds::importance of the four lanes, evaluated together.
-  void importance(const vec3& p, const vec3& n, float out[4]) const;
+  // ImportanceBounds::importance of the eight lanes, evaluated together:
+  // one AVX2 pass where the CPU has AVX2 (chosen at run time), else two
+  // SSE2 passes of four lanes. Both give the scalar function's values.
+  void importance(const vec3& p, const vec3& n, float out[8]) const;
+  void importance_sse2(const vec3& p, const vec3& n, float out[8]) const;
+  void importance_avx2(const vec3& p, const vec3& n, float out[8]) const;  // only on AVX2 CPUs
 };
 
-// A 4-wide tree: a binary SAOH tree collapsed so that each node weighs up to
-// four children at once, halving the levels a sample walks.
 class LightBVH {
  public:
   // One bounds per light; ids are the lights' indices into `lights`. Lights
@@ -80,15 +84,15 @@ class LightBVH {
 
  private:
   struct Node {
-    ImportanceBounds4 ib;
-    uint32_t child[4] = {};    // a light id in leaf lanes, else a node index
+    ImportanceBounds8 ib;
+    uint32_t child[kLightBVHWidth] = {};  // a light id in leaf lanes, else a node index
     uint32_t parent = ~0u;     // the root has none
     uint8_t parent_lane = 0;   // this node's lane in its parent
     uint8_t leaf_mask = 0;     // bit k: lane k is a light
   };
   struct Builder;  // the binary SAOH tree and its collapse (light_bvh.cpp)
   std::vector<Node> nodes_;
-  // Per light: node * 4 + lane where it sits; ~0 for lights not in the tree.
+  // Per light: node * kLightBVHWidth + lane where it sits; ~0 for lights not in the tree.
   std::vector<uint32_t> place_;
 };
 

@@ -359,9 +359,8 @@ float LightSampler::selection_pmf(uint32_t entry, const vec3& p, const vec3& n) 
 
 bool LightSampler::sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls) const {
   if (top_.empty()) return false;
-  float pmf, u_rest = u.x;
+  float pmf = 1.0f, u_rest = u.x;  // one top entry: taken with probability 1
   const uint32_t top = top_entries_.size() > 1 ? top_entries_[top_.sample(u.x, &pmf, &u_rest)] : top_entries_[0];
-  if (top_entries_.size() == 1) pmf = 1.0f;
   if (pmf <= 0.0f) return false;
   uint32_t entry = top;
   if (top == kTopBVH) {

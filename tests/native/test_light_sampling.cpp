@@ -10,6 +10,7 @@
 
 #include "core/background.h"
 #include "core/light_bvh.h"
+#include "core/simd.h"
 #include "core/lights.h"
 #include "core/sampling.h"
 #include "scene_fixtures.h"
@@ -308,19 +309,22 @@ TEST(LightBVH, PmfSumsToOneAndMatchesWhatSamplePicks) {
   }
 }
 
-// A node weighs its four children in SIMD lanes: the same operations as the
-// scalar ImportanceBounds::importance, so the same values, on bounds of every
-// kind (points, boxes, cones, two-sided, dark) seen from inside, outside and
-// their centre, with and without a receiver normal.
-TEST(LightBVH, FourLaneImportanceEqualsTheScalarOne) {
+// A node weighs its eight children in SIMD lanes (one AVX2 pass, or two SSE2
+// passes of four): the same operations as the scalar
+// ImportanceBounds::importance, so the same values, on bounds of every kind
+// (points, boxes, cones, two-sided, dark, empty lanes) seen from inside,
+// outside and their centre, with and without a receiver normal.
+TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
   auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
   int nonzero = 0;
   for (int trial = 0; trial < 5000; ++trial) {
-    ImportanceBounds lanes[4];
-    ImportanceBounds4 four;
-    for (int k = 0; k < 4; ++k) {
+    ImportanceBounds lanes[8];
+    ImportanceBounds8 eight;
+    const int used = trial % 11 == 0 ? 3 : 8;  // the other lanes stay empty
+    for (int k = 0; k < used; ++k) {
       LightBounds b;
       const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
       const float r = trial % 5 == 0 ? 0.0f : U(rng);
@@ -332,20 +336,24 @@ TEST(LightBVH, FourLaneImportanceEqualsTheScalarOne) {
       b.cos_theta_e = trial % 4 == 0 ? 0.0f : std::cos(1e-3f);
       b.two_sided = (trial + k) % 2 == 0;
       lanes[k] = ImportanceBounds(b);
-      four.set(k, lanes[k]);
+      eight.set(k, lanes[k]);
     }
     const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
     const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
-    alignas(16) float out[4];
-    four.importance(p, n, out);
-    for (int k = 0; k < 4; ++k) {
-      const float ref = lanes[k].importance(p, n);
+    alignas(32) float sse2[8], avx[8], chosen[8];
+    eight.importance_sse2(p, n, sse2);
+    eight.importance(p, n, chosen);
+    if (avx2) eight.importance_avx2(p, n, avx);
+    for (int k = 0; k < 8; ++k) {
+      const float ref = k < used ? lanes[k].importance(p, n) : 0.0f;
+      EXPECT_EQ(chosen[k], avx2 ? avx[k] : sse2[k]);
+      if (avx2) ASSERT_EQ(avx[k], sse2[k]) << "trial " << trial << " lane " << k;
       if (!std::isfinite(ref)) continue;  // a zero-size light exactly at p
-      ASSERT_NEAR(out[k], ref, 1e-6f * ref) << "trial " << trial << " lane " << k;
+      ASSERT_NEAR(sse2[k], ref, 1e-6f * ref) << "trial " << trial << " lane " << k;
       nonzero += ref > 0.0f;
     }
   }
-  EXPECT_GT(nonzero, 5000);
+  EXPECT_GT(nonzero, 10000);
 }
 
 // Many lights: the BVH picks the ones that matter at the point, so the
