@@ -8,9 +8,9 @@
 //             (one engine only, for perf)
 //   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
 //             (default tree against one built with those options, same traversal, alternating)
-//   bench_bvh --mode ab --ab-base max-leaf=8,sah-block=4,bins=32,tri-cost=1.5,drop-degenerate ...
+//   bench_bvh --mode ab --ab-base max-leaf=8,sah-block=4,bins=32,tri-cost=1.5,sweep,drop-degenerate ...
 //             (binary build options of the base tree; drop-degenerate: without triangles
-//             with two equal vertices, which never hit)
+//             with two equal vertices, which never hit; --mode trace builds with them too)
 //   bench_bvh --mode stats mesh...   (the BVH8's node fill, leaf and block sizes)
 //   bench_bvh --mode ab --ab-base avx2-kernel ...
 //             (the default tree traced by the AVX2 BVH8 kernel against the default (AVX-512) kernel)
@@ -475,12 +475,52 @@ void compare(const Config& cfg) {
   std::fflush(stdout);
 }
 
+// The base tree's build options and triangles named by --ab-base (--mode ab;
+// --mode trace builds with them too).
+BuildOptions ab_options(const std::string& spec) {
+  BuildOptions base_opt;
+  if (spec.find("no-collapse") != std::string::npos) base_opt.collapse_small_subtrees = false;
+  if (spec.find("separate-leaves") != std::string::npos) base_opt.leaves_next_to_parent = false;
+  // max-leaf=N, sah-block=N, bins=N, tri-cost=X: the binary build's options.
+  auto opt_value = [&](const char* key) -> const char* {
+    const size_t at = spec.find(key);
+    return at == std::string::npos ? nullptr : spec.c_str() + at + std::strlen(key);
+  };
+  if (const char* v = opt_value("max-leaf=")) base_opt.max_leaf_size = std::atoi(v);
+  if (const char* v = opt_value("sah-block=")) base_opt.sah_block_size = std::atoi(v);
+  if (const char* v = opt_value("bins=")) base_opt.bins = std::atoi(v);
+  if (const char* v = opt_value("tri-cost=")) base_opt.intersection_cost = float(std::atof(v));
+  if (spec.find("sweep") != std::string::npos) base_opt.method = SplitMethod::SweepSAH;
+  return base_opt;
+}
+
+// drop-degenerate: leaves out triangles with two equal vertices (the
+// watertight test never hits them: one edge function is zero and the other
+// two are exact opposites), as a build could.
+TriangleSoup ab_soup(const TriangleSoup& soup, const std::string& spec) {
+  if (spec.find("drop-degenerate") == std::string::npos) return soup;
+  TriangleSoup out = soup;
+  out.indices.clear();
+  const float* p = soup.positions.data();
+  auto same = [&](uint32_t a, uint32_t b) {
+    return p[3 * a] == p[3 * b] && p[3 * a + 1] == p[3 * b + 1] && p[3 * a + 2] == p[3 * b + 2];
+  };
+  for (size_t t = 0; t < soup.num_triangles(); ++t) {
+    const uint32_t* i = &soup.indices[3 * t];
+    if (same(i[0], i[1]) || same(i[1], i[2]) || same(i[0], i[2])) continue;
+    out.indices.insert(out.indices.end(), i, i + 3);
+  }
+  std::printf("drop-degenerate: %zu of %zu triangles left out\n", soup.num_triangles() - out.num_triangles(),
+              soup.num_triangles());
+  return out;
+}
+
 // --mode trace: one engine on one ray kind, repeated, for profilers (perf)
 // and A/B runs; prints Mrays/s per pass.
 void trace_only(const Config& cfg) {
   for (const std::string& path : cfg.meshes) {
-    TriangleSoup soup = load_mesh_file(path);
-    BuildOptions opt;
+    TriangleSoup soup = ab_soup(load_mesh_file(path), cfg.ab_base);
+    BuildOptions opt = ab_options(cfg.ab_base);
     if (cfg.engine == "sse2") opt.bvh_width = 4;
     const Mesh mesh = tessera_build(soup, opt);
     RTCDevice dev = rtcNewDevice("threads=1");
@@ -532,36 +572,8 @@ void ab(const Config& cfg) {
   for (const std::string& path : cfg.meshes) {
     TriangleSoup soup = load_mesh_file(path);
     const Mesh mesh = tessera_build(soup, BuildOptions{});
-    BuildOptions base_opt;
-    if (cfg.ab_base.find("no-collapse") != std::string::npos) base_opt.collapse_small_subtrees = false;
-    if (cfg.ab_base.find("separate-leaves") != std::string::npos) base_opt.leaves_next_to_parent = false;
-    // max-leaf=N, sah-block=N, bins=N, tri-cost=X: the binary build's options.
-    auto opt_value = [&](const char* key) -> const char* {
-      const size_t at = cfg.ab_base.find(key);
-      return at == std::string::npos ? nullptr : cfg.ab_base.c_str() + at + std::strlen(key);
-    };
-    if (const char* v = opt_value("max-leaf=")) base_opt.max_leaf_size = std::atoi(v);
-    if (const char* v = opt_value("sah-block=")) base_opt.sah_block_size = std::atoi(v);
-    if (const char* v = opt_value("bins=")) base_opt.bins = std::atoi(v);
-    if (const char* v = opt_value("tri-cost=")) base_opt.intersection_cost = float(std::atof(v));
-    // drop-degenerate: the base tree leaves out triangles with two equal
-    // vertices (the watertight test never hits them: one edge function is
-    // zero and the other two are exact opposites), as a build could.
-    TriangleSoup base_soup = soup;
-    if (cfg.ab_base.find("drop-degenerate") != std::string::npos) {
-      base_soup.indices.clear();
-      const float* p = soup.positions.data();
-      auto same = [&](uint32_t a, uint32_t b) {
-        return p[3 * a] == p[3 * b] && p[3 * a + 1] == p[3 * b + 1] && p[3 * a + 2] == p[3 * b + 2];
-      };
-      for (size_t t = 0; t < soup.num_triangles(); ++t) {
-        const uint32_t* i = &soup.indices[3 * t];
-        if (same(i[0], i[1]) || same(i[1], i[2]) || same(i[0], i[2])) continue;
-        base_soup.indices.insert(base_soup.indices.end(), i, i + 3);
-      }
-      std::printf("drop-degenerate: %zu of %zu triangles left out\n", soup.num_triangles() - base_soup.num_triangles(),
-                  soup.num_triangles());
-    }
+    BuildOptions base_opt = ab_options(cfg.ab_base);
+    const TriangleSoup base_soup = ab_soup(soup, cfg.ab_base);
     const Mesh base = tessera_build(base_soup, base_opt);
     // avx2-kernel: the base passes run the AVX2 BVH8 traversal instead of the AVX-512 one.
     const bool new_kernel = g_bvh8_avx512;
