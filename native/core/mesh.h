@@ -35,6 +35,7 @@ struct Mesh {
   BVH8 bvh8;
   size_t num_input_triangles = 0;
   size_t num_skipped_triangles = 0;     // non-finite or out-of-range vertices
+  size_t num_degenerate_triangles = 0;  // two equal corners: never hit, left out
 
   AABB bounds() const { return bvh8.empty() ? bvh.bounds : bvh8.bounds; }
   int width() const { return bvh8.empty() ? 4 : 8; }

@@ -306,6 +306,27 @@ TEST(BVH, InvalidTrianglesAreSkippedNotStored) {
   check_against_brute_force(mesh, 2000, 9);
 }
 
+// Triangles with two equal corners can never be hit: they are left out of
+// the tree (each one sent its Tri4 block down the exact-zero path for every
+// ray reaching it), counted apart from the invalid ones (which the add-on
+// reports as a problem in the mesh).
+TEST(BVH, TrianglesWithTwoEqualCornersAreLeftOutNotReported) {
+  TriangleSoup s = random_soup(100, 5);
+  auto corner = [&](int t, int k) { return &s.positions[3 * s.indices[3 * t + k]]; };
+  auto copy_corner = [&](int t, int from, int to) { std::copy(corner(t, from), corner(t, from) + 3, corner(t, to)); };
+  copy_corner(3, 0, 1);                             // triangle 3: corners 0 and 1 equal
+  copy_corner(4, 2, 0), copy_corner(4, 2, 1);       // triangle 4: all three equal
+  s.positions[3 * s.indices[3 * 7]] = std::nanf("");  // triangle 7: NaN corner (invalid)
+  for (int w : widths()) {
+    Mesh mesh = make_mesh(s, with_width({}, w));
+    EXPECT_EQ(mesh.num_degenerate_triangles, 2u);
+    EXPECT_EQ(mesh.num_skipped_triangles, 1u);
+    EXPECT_EQ(mesh.prim_ids.size(), 97u);
+    for (uint32_t id : mesh.prim_ids) EXPECT_TRUE(id != 3 && id != 4 && id != 7);
+    check_against_brute_force(mesh, 2000, 9);
+  }
+}
+
 TEST(BVH, IdenticalTrianglesStayWithinTraversalDepth) {
   // 100k copies of one triangle: centroids cannot be separated.
   TriangleSoup s;
