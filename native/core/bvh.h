@@ -54,7 +54,7 @@ enum class SplitMethod { Midpoint, SweepSAH, BinnedSAH };
 
 struct BuildOptions {
   SplitMethod method = SplitMethod::BinnedSAH;
-  int bins = 16;            // binned SAH only
+  int bins = 32;            // binned SAH only (Embree's object binning uses 32 too)
   // A leaf never holds more, unless primitives are inseparable. 4: one Tri4
   // block per mesh leaf, so the collapse can fill the wide nodes down to
   // single blocks (as Embree's BVH8 builder, whose leaves are 95% one block).
