@@ -82,14 +82,6 @@ double Film::sample_variance(size_t i) const {
   return std::max(0.0, (sum_sq_[i] - n * mean_sq) / double(n - 1));
 }
 
-double Film::half_difference_sq(size_t i) const {
-  const int n = count_[i];
-  const int n_a = class_a_count(n);
-  if (n_a == 0) return 0.0;
-  const vec3 d = sum_[i] / float(n) - sum_a_[i] / float(n_a);
-  return double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
-}
-
 // The image's mean variance per pixel and channel in two parts.
 //
 // Fireflies: a pixel's brightest sample, when it is over the threshold

@@ -91,8 +91,6 @@ class Film {
   // the Owen-scrambled mean where the integrand is smooth, not where rare
   // bright samples (fireflies) carry it.
   double sample_variance(size_t i) const;
-  // |full - class A half|^2 summed over RGB: ~ the variance of the pixel's mean.
-  double half_difference_sq(size_t i) const;
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
   // channels) / mean pixel value, the variance from the replicates (above)
   // and, from every pixel, the error its firefly (a sample over

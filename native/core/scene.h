@@ -104,7 +104,7 @@ class Scene {
   size_t num_instanced_triangles() const; // as rendered
   size_t memory_bytes() const;            // triangles, attributes and BVHs
   // Instances whose triangles commit() moved into the merged BLAS (below).
-  size_t num_merged_instances() const { return merged_owner_.empty() ? 0 : num_merged_instances_; }
+  size_t num_merged_instances() const { return num_merged_instances_; }
   double build_seconds = 0.0;
 
  private:

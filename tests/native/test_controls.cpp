@@ -174,9 +174,6 @@ TEST(Controls, FilmSampleVarianceOfKnownSamples) {
   one.add(0, 0, vec3(5.0f));
   one.set_count(0, 1);
   EXPECT_EQ(0.0, one.sample_variance(0));
-  // The half difference: class A of samples 0..3 is {2, 3} (Film::class_a),
-  // mean (0, 1, 2) against the full mean (1, 0.5, 1).
-  EXPECT_NEAR(1.0 + 0.25 + 1.0, film.half_difference_sq(0), 1e-6);
 }
 
 // Adaptive sampling with a budget (time limit or error target): after the
