@@ -389,6 +389,52 @@ TEST(LightBVH, OneSidedLightsBehindThePointAreNotPicked) {
   }
 }
 
+// The tree's bounds are conservative: a light that can light the point
+// (its own importance there is positive) has a positive probability, for
+// clusters of emitters with every kind of cone (one normal, narrow and wide
+// cones, the whole sphere, two-sided, with and without emission spread).
+// A node whose cone missed one of its lights' normals would never pick it
+// from where only that normal faces: a dark, biased patch in the image.
+TEST(LightBVH, EveryLightThatCanContributeHasAPositiveProbability) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  std::vector<LightBounds> lights;
+  for (int cluster = 0; cluster < 12; ++cluster) {
+    const vec3 c(U(rng) * 8 - 4, U(rng) * 8 - 4, U(rng) * 8 - 4);
+    const vec3 facing = unit();
+    const float cluster_r = 0.05f + U(rng);
+    for (int i = 0; i < 150; ++i) {
+      LightBounds b;
+      const vec3 q = c + cluster_r * unit();
+      const float size = 0.002f + 0.05f * U(rng);
+      b.bounds.grow(q - vec3(size));
+      b.bounds.grow(q + vec3(size));
+      // Half the clusters are spheres (normals all round), half face one way.
+      b.w = cluster % 2 == 0 ? glm::normalize(q - c) : glm::normalize(facing + 0.3f * unit());
+      b.phi = 0.1f + U(rng);
+      const int kind = i % 5;
+      b.cos_theta_o = kind == 0 ? 1.0f : kind == 1 ? std::cos(0.3f * U(rng)) : kind == 2 ? std::cos(2.5f * U(rng)) : kind == 3 ? -1.0f : 1.0f;
+      b.cos_theta_e = i % 3 == 0 ? std::cos(0.2f + 1.3f * U(rng)) : 0.0f;
+      b.two_sided = i % 7 == 0;
+      lights.push_back(b);
+    }
+  }
+  LightBVH bvh;
+  bvh.build(lights);
+  int checked = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const vec3 p(U(rng) * 12 - 6, U(rng) * 12 - 6, U(rng) * 12 - 6);
+    const vec3 n = trial % 3 == 0 ? vec3(0.0f) : unit();
+    for (uint32_t i = 0; i < lights.size(); ++i) {
+      if (!(ImportanceBounds(lights[i]).importance(p, n) > 0.0f)) continue;
+      ++checked;
+      ASSERT_GT(bvh.pmf(p, n, i), 0.0f) << "light " << i << " at trial " << trial;
+    }
+  }
+  EXPECT_GT(checked, 50000);
+}
+
 // Regression (found by scripts/fuzz.sh): lights whose centroids span the
 // float range made the SAOH bucket index inf or NaN, converted to int out of
 // range (undefined behaviour; on x86 INT_MIN, an out-of-bounds bucket write).
