@@ -287,7 +287,6 @@ struct FastBuilder {
   // (uninitialised): concurrent partitions work on disjoint [begin, end).
   std::unique_ptr<PrimRef[]> scratch;
   BVHArray<BVHNode> nodes;
-  std::atomic<uint32_t> node_count{1};
   uint32_t block;
   int nb;
 
@@ -501,13 +500,49 @@ struct FastBuilder {
     return i;
   }
 
-  void build(uint32_t node_index, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox, int depth) {
+  // Node pairs come from chunks of kNodeChunk slots taken from the shared
+  // counter: an atomic for every pair (as before) moved its cache line between
+  // the cores on nearly every node of a two-thread build, and its lock prefix
+  // made each allocation wait for the stores before it. A task that runs in
+  // parallel with its sibling (the right child of a parallel split) starts
+  // its own chunk; the left one continues its parent's. The unused rest of a
+  // task's last chunk stays a gap in the array (never touched or read: the
+  // tree is reached from nodes[0]). The layout depends on the schedule (as
+  // it did); the tree (reached from the root), prim_order and the SAH sums
+  // do not.
+  static constexpr uint32_t kParallelSubtree = 4096;
+  static constexpr uint32_t kNodeChunk = 64;
+  std::atomic<uint32_t> node_count{1};
+  struct NodeAlloc {
+    uint32_t next = 0, end = 0;
+  };
+  uint32_t alloc_pair(NodeAlloc& a) {
+    if (a.next == a.end) {
+      a.next = node_count.fetch_add(kNodeChunk, std::memory_order_relaxed);
+      a.end = a.next + kNodeChunk;
+    }
+    const uint32_t r = a.next;
+    a.next += 2;
+    return r;
+  }
+  // Slots for n references: at most 2n - 1 nodes, and each of the (fewer
+  // than 2n / kParallelSubtree + 1) chunk sequences wastes less than a chunk.
+  static size_t node_capacity(size_t n) { return 2 * n + (2 * n / kParallelSubtree + 2) * kNodeChunk; }
+  struct Result {
+    double inner_area;    // sum of the half areas of the subtree's interior nodes
+    double leaf_area;     // sum over its leaves of count x half area
+  };
+
+  Result build(uint32_t node_index, NodeAlloc& alloc, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox,
+               int depth) {
     BVHNode& node = nodes[node_index];
     const AABB b = box.aabb();
     node.lo = b.lo;
     node.hi = b.hi;
     const uint32_t n = end - begin;
-    if (n <= 1) return make_leaf(node, begin, end);
+    const double area = b.half_area();
+    const Result leaf{0.0, area * n};
+    if (n <= 1) return make_leaf(node, begin, end), leaf;
     uint32_t mid = begin;
     SSEBox lbox, rbox, lcbox, rcbox;
     bool have_boxes = false;
@@ -515,9 +550,9 @@ struct FastBuilder {
     // plus at least the children's triangles, never less than the leaf, so
     // the SAH would make it a leaf anyway; skip the binning.
     if (n <= block && n <= uint32_t(opt.max_leaf_size) && opt.traversal_cost >= opt.intersection_cost)
-      return make_leaf(node, begin, end);
+      return make_leaf(node, begin, end), leaf;
     if (depth >= kMaxSAHDepth) {
-      if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, begin, end);
+      if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, begin, end), leaf;
     } else {
       __m128 cmin, scale;
       Split split = find_split(begin, end, cbox, cmin, scale);
@@ -525,7 +560,7 @@ struct FastBuilder {
       const float split_cost =
           split.axis < 0 ? kInf : opt.traversal_cost + opt.intersection_cost * split.cost / box.half_area();
       if (n <= uint32_t(opt.max_leaf_size) && (leaf_cost <= split_cost || split.axis < 0))
-        return make_leaf(node, begin, end);
+        return make_leaf(node, begin, end), leaf;
       if (split.axis >= 0) {
         // The binning's own arithmetic, on the split axis only.
         const __m128i pivot = _mm_set1_epi32(int(split.index));
@@ -555,16 +590,21 @@ struct FastBuilder {
         else rbox.grow(lo_of(refs[i]), refs[i].hi), rcbox.grow(c, c);
       }
     }
-    const uint32_t left = node_count.fetch_add(2);
+    const uint32_t left = alloc_pair(alloc);
     node.first = left;
     node.count = 0;
-    if (opt.parallel && n > 4096) {
-      tbb::parallel_invoke([&] { build(left, begin, mid, lbox, lcbox, depth + 1); },
-                           [&] { build(left + 1, mid, end, rbox, rcbox, depth + 1); });
+    Result l, r;
+    if (opt.parallel && n > kParallelSubtree) {
+      tbb::parallel_invoke([&] { l = build(left, alloc, begin, mid, lbox, lcbox, depth + 1); },
+                           [&] {
+                             NodeAlloc own;
+                             r = build(left + 1, own, mid, end, rbox, rcbox, depth + 1);
+                           });
     } else {
-      build(left, begin, mid, lbox, lcbox, depth + 1);
-      build(left + 1, mid, end, rbox, rcbox, depth + 1);
+      l = build(left, alloc, begin, mid, lbox, lcbox, depth + 1);
+      r = build(left + 1, alloc, mid, end, rbox, rcbox, depth + 1);
     }
+    return {area + l.inner_area + r.inner_area, l.leaf_area + r.leaf_area};
   }
 };
 
@@ -617,10 +657,13 @@ BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOpti
   SSEBox box, cbox;
   for (const RefBlock& blk : blocks) box.grow(blk.box), cbox.grow(blk.cbox);
   if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
-  b.nodes.resize(2 * size_t(total));
-  b.build(0, 0, total, box, cbox, 0);
+  b.nodes.resize(FastBuilder::node_capacity(total));
+  FastBuilder::NodeAlloc alloc;
+  const FastBuilder::Result res = b.build(0, alloc, 0, total, box, cbox, 0);
   b.nodes.resize(b.node_count.load());  // no shrink-to-fit copy: the rest was never touched
   bvh.nodes = std::move(b.nodes);
+  bvh.sah_inner_area = res.inner_area;
+  bvh.sah_leaf_area = res.leaf_area;
   bvh.prim_order.resize(total);
   auto order = [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
@@ -668,17 +711,25 @@ float sah_cost(const BVH& bvh, const BuildOptions& options) {
   if (bvh.nodes.empty()) return 0.0f;
   const float root_area = AABB{bvh.nodes[0].lo, bvh.nodes[0].hi}.half_area();
   if (root_area <= 0.0f) return 0.0f;
-  // Fixed blocks summed in a fixed order: the same value however many threads run.
-  auto sum = [&](const tbb::blocked_range<size_t>& r, double cost) {
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      const BVHNode& n = bvh.nodes[i];
-      const float area = AABB{n.lo, n.hi}.half_area() / root_area;
-      cost += n.is_leaf() ? options.intersection_cost * n.count * area : options.traversal_cost * area;
+  if (bvh.sah_inner_area >= 0.0)  // summed by the build
+    return float((options.traversal_cost * bvh.sah_inner_area + options.intersection_cost * bvh.sah_leaf_area) /
+                 root_area);
+  // The nodes reached from the root (the node array may have unused slots),
+  // in a fixed order.
+  double cost = 0.0;
+  std::vector<uint32_t> stack{0u};
+  while (!stack.empty()) {
+    const BVHNode& n = bvh.nodes[stack.back()];
+    stack.pop_back();
+    const float area = AABB{n.lo, n.hi}.half_area() / root_area;
+    if (n.is_leaf()) {
+      cost += options.intersection_cost * n.count * area;
+    } else {
+      cost += options.traversal_cost * area;
+      stack.push_back(n.first + 1);
+      stack.push_back(n.first);
     }
-    return cost;
-  };
-  const double cost = tbb::parallel_deterministic_reduce(tbb::blocked_range<size_t>(0, bvh.nodes.size(), 16384), 0.0,
-                                                         sum, std::plus<double>());
+  }
   return float(cost);
 }
 

@@ -78,9 +78,16 @@ struct BuildOptions {
   bool leaves_next_to_parent = true;
 };
 
+// The nodes are those reached from nodes[0]: the binned builder may leave
+// unused slots between the parts that parallel tasks built (never read,
+// never touched), so the array is not a list of the tree's nodes.
 struct BVH {
   BVHArray<BVHNode> nodes;
   std::vector<uint32_t> prim_order;  // prim_order[i] = input index of the i-th reordered primitive
+  // Summed by the binned builder (in a fixed order): the half areas of the
+  // interior nodes, and of the leaves times their counts; sah_cost() needs no
+  // pass over the nodes. Negative: not summed (sah_cost walks the tree).
+  double sah_inner_area = -1.0, sah_leaf_area = 0.0;
 
   const AABB bounds() const { return nodes.empty() ? AABB{} : AABB{nodes[0].lo, nodes[0].hi}; }
   size_t memory_bytes() const { return nodes.capacity() * sizeof(BVHNode) + prim_order.capacity() * sizeof(uint32_t); }

@@ -60,7 +60,12 @@ struct Collapser {
   std::unique_ptr<uint8_t[]> as_leaf;
   std::unique_ptr<float[]> cost_;
   std::unique_ptr<Space[]> space_;
-  std::atomic<uint32_t> num_nodes{0}, num_blocks{0};
+  // Nodes and blocks written, counted per task and summed by the parent
+  // after its tasks (a shared atomic made every leaf's lock-prefixed add wait
+  // for the block stores before it, and moved between the cores).
+  struct Counts {
+    uint32_t nodes = 0, blocks = 0;
+  };
 
   static float area(const BVHNode& n) { return AABB{n.lo, n.hi}.half_area(); }
   static uint32_t blocks_for(uint32_t tris) { return (tris + 3) / 4; }
@@ -71,7 +76,7 @@ struct Collapser {
   // `unit` (a subtree's leaves index one contiguous range of the leaf order,
   // starting at its leftmost leaf); the last block repeats its last triangle
   // in its spare lanes.
-  uint32_t emit_leaf(uint32_t i, uint32_t unit) {
+  uint32_t emit_leaf(uint32_t i, uint32_t unit, Counts& counts) {
     uint32_t first = i;
     while (!bin.nodes[first].is_leaf()) first = bin.nodes[first].first;
     const uint32_t lo = bin.nodes[first].first, count = tris_below[i];
@@ -87,7 +92,7 @@ struct Collapser {
         t.prim[lane] = k;
       }
     }
-    num_blocks.fetch_add(blocks, std::memory_order_relaxed);
+    counts.blocks += blocks;
     return kBVH4LeafBit | (unit << 3) | (blocks - 1);
   }
 
@@ -197,17 +202,18 @@ struct Collapser {
   // Writes binary node i as a wide node at arena unit `unit` (its leaf blocks
   // right behind it, or at `block_unit` in the block region), then its
   // subtrees at the offsets plan()'s sizes give; returns its reference.
-  uint32_t emit(uint32_t i, uint32_t unit, uint32_t block_unit) {
+  uint32_t emit(uint32_t i, uint32_t unit, uint32_t block_unit, Counts& counts) {
     const BVHNode& n = bin.nodes[i];
     uint32_t kids[N];
     const int count = open_children(n, kids);
-    num_nodes.fetch_add(1, std::memory_order_relaxed);
+    counts.nodes += 1;
     uint32_t refs[N];
+    Counts task_counts[N];
     // Leaf children first, right behind the node, then the subtrees.
     uint32_t b = shared() ? unit + kNodeUnits : block_unit;
     for (int c = 0; c < count; ++c)
       if (is_leaf_child(kids[c])) {
-        refs[c] = emit_leaf(kids[c], b);
+        refs[c] = emit_leaf(kids[c], b, counts);
         b += kBlockUnits * blocks_for(tris_below[kids[c]]);
       }
     uint32_t next = shared() ? align_node(b) : unit + kNodeUnits;
@@ -218,15 +224,20 @@ struct Collapser {
       const uint32_t k = kids[c];
       if (is_leaf_child(k)) continue;
       if (opt.parallel && tris_below[k] > kParallelEmit) {
-        tasks.run([this, &refs, c, k, next, next_block] { refs[c] = emit(k, next, next_block); });
+        tasks.run([this, &refs, &task_counts, c, k, next, next_block] {
+          refs[c] = emit(k, next, next_block, task_counts[c]);
+        });
         spawned = true;
       } else {
-        refs[c] = emit(k, next, next_block);
+        refs[c] = emit(k, next, next_block, counts);
       }
       next += space_[k].nodes;
       next_block += space_[k].blocks;
     }
-    if (spawned) tasks.wait();
+    if (spawned) {
+      tasks.wait();
+      for (const Counts& t : task_counts) counts.nodes += t.nodes, counts.blocks += t.blocks;
+    }
     Node& node = *reinterpret_cast<Node*>(mem() + size_t(unit) * kBlockUnit);
     clear(node);
     for (int c = 0; c < count; ++c) set_child(node, c, bin.nodes[kids[c]], refs[c]);
@@ -238,6 +249,7 @@ struct Collapser {
     if (bin.nodes.empty()) return;
     const BVHNode& root = bin.nodes[0];
     size_t units = 0;
+    Counts counts;
     if (root.is_leaf()) {
       // A leaf root gets a node with one child; its blocks follow the node.
       tris_below.reset(new uint32_t[1]{root.count});
@@ -246,9 +258,9 @@ struct Collapser {
       out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
       Node& node = *reinterpret_cast<Node*>(mem());
       clear(node);
-      set_child(node, 0, root, emit_leaf(0, kNodeUnits));
+      set_child(node, 0, root, emit_leaf(0, kNodeUnits, counts));
       node.num_children = 1;
-      num_nodes = 1;
+      counts.nodes = 1;
     } else {
       const size_t n = bin.nodes.size();
       tris_below.reset(new uint32_t[n]);
@@ -260,10 +272,10 @@ struct Collapser {
       const Space s = space_[0];
       units = size_t(s.nodes) + s.blocks;  // the node region ends 64-byte aligned
       out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
-      emit(0, 0, s.nodes);
+      emit(0, 0, s.nodes, counts);
     }
-    out.num_nodes = num_nodes.load();
-    out.num_blocks = num_blocks.load();
+    out.num_nodes = counts.nodes;
+    out.num_blocks = counts.blocks;
     out.bounds = AABB{root.lo, root.hi};
   }
 };

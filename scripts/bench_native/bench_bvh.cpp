@@ -12,6 +12,9 @@
 //             (binary build options of the base tree; drop-degenerate: without triangles
 //             with two equal vertices, which never hit; --mode trace builds with them too)
 //   bench_bvh --mode stats mesh...   (the BVH8's node fill, leaf and block sizes)
+//   bench_bvh --mode build [--engine both|tessera|embree] [--threads 1,2] [--runs N] mesh...
+//             (builds only, engines alternating in one loop per thread count: median wall and
+//             process CPU time; one engine alone for perf / callgrind)
 //   bench_bvh --mode ab --ab-base avx2-kernel ...
 //             (the default tree traced by the AVX2 BVH8 kernel against the default (AVX-512) kernel)
 //
@@ -22,6 +25,8 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <atomic>
@@ -364,6 +369,7 @@ struct Config {
   std::vector<std::string> builder_meshes;  // empty: all
   std::string kind = "all";         // --mode trace
   std::string engine = "tessera";   // --mode trace: tessera, sse2 or embree
+  bool engine_set = false;          // --mode build: both engines unless --engine is given
   std::string ab_base;              // --mode ab: options of the base tree
 };
 
@@ -723,6 +729,75 @@ void builders(const Config& cfg) {
   std::printf("\n");
 }
 
+// --mode build: builds only. Per thread count, the engines alternate
+// (Tessera, Embree, Tessera, ...) in one task_arena; wall time and the
+// process's CPU time (all threads) per build, medians; ratio = Embree /
+// Tessera. --engine tessera or embree builds only that one (for perf).
+double process_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+// Minor page faults of the process so far (first touches of fresh memory; a
+// load-independent figure, unlike the times).
+double minor_faults() {
+  rusage u;
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_minflt);
+}
+
+void build_only(const Config& cfg) {
+  const bool do_t = !cfg.engine_set || cfg.engine != "embree", do_e = !cfg.engine_set || cfg.engine == "embree" || cfg.engine == "both";
+  std::printf("| mesh | threads | Tessera wall ms | Embree wall ms | ratio wall | Tessera CPU ms | Embree CPU ms | ratio CPU | SAH binary | SAH wide | Tessera faults | Embree faults |\n"
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const std::string& path : cfg.meshes) {
+    TriangleSoup soup = load_mesh_file(path);
+    const std::string name = basename_of(path);
+    for (int nt : cfg.threads) {
+      std::string conf = "threads=" + std::to_string(nt);
+      RTCDevice dev = do_e ? rtcNewDevice(conf.c_str()) : nullptr;
+      EmbreeScene es;
+      Mesh mesh;
+      tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
+      tbb::task_arena arena(nt);
+      std::vector<double> tw, tc, ew, ec, tf, ef;
+      arena.execute([&] {
+        for (int r = 0; r < cfg.runs; ++r) {
+          if (do_t) {
+            mesh = Mesh{};
+            const double f0 = minor_faults(), c0 = process_seconds();
+            auto t0 = Clock::now();
+            mesh = tessera_build(soup, BuildOptions{});
+            tw.push_back(seconds_since(t0));
+            tc.push_back(process_seconds() - c0);
+            tf.push_back(minor_faults() - f0);
+          }
+          if (do_e) {
+            es.release();
+            const double f0 = minor_faults(), c0 = process_seconds();
+            auto t0 = Clock::now();
+            embree_build(dev, soup, es);
+            ew.push_back(seconds_since(t0));
+            ec.push_back(process_seconds() - c0);
+            ef.push_back(minor_faults() - f0);
+          }
+        }
+      });
+      es.release();
+      if (dev) rtcReleaseDevice(dev);
+      auto ms = [](const std::vector<double>& v) { return v.empty() ? 0.0 : 1e3 * median(v); };
+      auto ratio = [&](const std::vector<double>& e, const std::vector<double>& t) {
+        return e.empty() || t.empty() ? 0.0 : median(e) / median(t);
+      };
+      auto med = [](const std::vector<double>& v) { return v.empty() ? 0.0 : median(v); };
+      std::printf("| %s | %d | %.2f | %.2f | %.3f | %.2f | %.2f | %.3f | %.2f | %.2f | %.0f | %.0f |\n", name.c_str(), nt, ms(tw),
+                  ms(ew), ratio(ew, tw), ms(tc), ms(ec), ratio(ec, tc), do_t ? mesh_sah_cost(mesh) : 0.0f,
+                  do_t ? (mesh.width() == 8 ? sah_cost(mesh.bvh8) : sah_cost(mesh.bvh)) : 0.0f, med(tf), med(ef));
+      std::fflush(stdout);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -735,7 +810,7 @@ int main(int argc, char** argv) {
     };
     if (a == "--mode") cfg.mode = next();
     else if (a == "--kind") cfg.kind = next();
-    else if (a == "--engine") cfg.engine = next();
+    else if (a == "--engine") cfg.engine = next(), cfg.engine_set = true;
     else if (a == "--ab-base") cfg.ab_base = next();
     else if (a == "--runs") cfg.runs = std::stoi(next());
     else if (a == "--clock") g_cpu_clock = next() == "cpu";
@@ -764,5 +839,6 @@ int main(int argc, char** argv) {
   if (cfg.mode == "trace") trace_only(cfg);
   if (cfg.mode == "ab") ab(cfg);
   if (cfg.mode == "stats") tree_stats(cfg);
+  if (cfg.mode == "build") build_only(cfg);
   return 0;
 }

@@ -510,3 +510,78 @@ TEST(BVH, ParallelCollapseMatchesSerialCollapse) {
     });
   }
 }
+
+namespace {
+
+// Triangle boxes of a mesh file, in input order.
+std::vector<AABB> triangle_boxes(const TriangleSoup& s) {
+  std::vector<AABB> boxes(s.num_triangles());
+  const vec3* pos = reinterpret_cast<const vec3*>(s.positions.data());
+  for (size_t i = 0; i < boxes.size(); ++i)
+    for (int k = 0; k < 3; ++k) boxes[i].grow(pos[s.indices[3 * i + k]]);
+  return boxes;
+}
+
+// The same binary tree as reached from the roots (the arrays may differ in
+// layout and in unused slots): equal boxes, leaf ranges and shapes.
+void expect_same_binary_tree(const BVH& a, const BVH& b) {
+  ASSERT_EQ(a.prim_order, b.prim_order);
+  std::vector<std::pair<uint32_t, uint32_t>> stack{{0u, 0u}};
+  size_t visited = 0;
+  while (!stack.empty()) {
+    const auto [i, j] = stack.back();
+    stack.pop_back();
+    const BVHNode &na = a.nodes[i], &nb = b.nodes[j];
+    ASSERT_EQ(std::memcmp(&na.lo, &nb.lo, sizeof(vec3)), 0);
+    ASSERT_EQ(std::memcmp(&na.hi, &nb.hi, sizeof(vec3)), 0);
+    ASSERT_EQ(na.is_leaf(), nb.is_leaf());
+    ++visited;
+    if (na.is_leaf()) {
+      ASSERT_EQ(na.first, nb.first);
+      ASSERT_EQ(na.count, nb.count);
+    } else {
+      stack.push_back({na.first, nb.first});
+      stack.push_back({na.first + 1, nb.first + 1});
+    }
+  }
+  EXPECT_GT(visited, a.prim_order.size() / 4);
+}
+
+}  // namespace
+
+// The binary tree itself (not only the wide tree collapsed from it) and its
+// SAH cost do not depend on how many threads built it: node pairs come from
+// per-task chunks, so only the array layout may differ.
+TEST(BVH, BinaryTreeIsIndependentOfThreadCount) {
+  const std::vector<AABB> boxes = triangle_boxes(load_mesh_file(shared_dir() + "/meshes/igea.ply"));
+  for (int block : {1, 4}) {
+    BuildOptions opt;
+    opt.sah_block_size = block;
+    BVH one, two;
+    tbb::task_arena(1).execute([&] { one = build_bvh(boxes, opt); });
+    tbb::task_arena(2).execute([&] { two = build_bvh(boxes, opt); });
+    expect_same_binary_tree(one, two);
+    EXPECT_EQ(sah_cost(one), sah_cost(two));
+    check_binary_invariants(two, boxes);
+  }
+}
+
+// sah_cost() of a binned build uses the sums the build kept; they equal the
+// cost of walking the tree.
+TEST(BVH, BuildSAHSumsEqualTheTreeWalk) {
+  const std::vector<AABB> boxes = triangle_boxes(load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj"));
+  for (int block : {1, 4}) {
+    BuildOptions opt;
+    opt.sah_block_size = block;
+    BVH bvh = build_bvh(boxes, opt);
+    ASSERT_GE(bvh.sah_inner_area, 0.0);
+    BuildOptions costs;
+    costs.traversal_cost = 1.5f;
+    costs.intersection_cost = 0.75f;
+    const float kept = sah_cost(bvh, costs);
+    bvh.sah_inner_area = -1.0;  // not summed: sah_cost walks the tree
+    const float walked = sah_cost(bvh, costs);
+    EXPECT_NEAR(kept, walked, 1e-5f * walked);
+    EXPECT_GT(walked, 1.0f);
+  }
+}
