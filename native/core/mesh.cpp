@@ -18,6 +18,36 @@ size_t Mesh::memory_bytes() const {
          corner_uvs.capacity() * sizeof(vec2) + bvh.memory_bytes() + bvh8.memory_bytes();
 }
 
+namespace {
+// The wide BLAS (BVH8 on AVX2 CPUs, else BVH4) collapsed from `binary`
+// over mesh.tri_verts in its leaf order.
+void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& opt, const BuildOptions& options) {
+  const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
+  const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
+  if (width == 8) {
+    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data(), opt);
+    mesh.bvh8.sah_cost = sah_cost(binary, options);
+  } else {
+    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data(), opt);
+    mesh.bvh.sah_cost = sah_cost(binary, options);
+  }
+}
+
+// Per-triangle attributes stay in Blender's order (indexed by prim_ids).
+void copy_attributes(Mesh& mesh, const MeshInput& in) {
+  const size_t nt = in.num_triangles;
+  if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);
+  if (in.corner_normals) {
+    const vec3* n = reinterpret_cast<const vec3*>(in.corner_normals);
+    mesh.corner_normals.assign(n, n + 3 * nt);
+  }
+  if (in.corner_uvs) {
+    const vec2* uv = reinterpret_cast<const vec2*>(in.corner_uvs);
+    mesh.corner_uvs.assign(uv, uv + 3 * nt);
+  }
+}
+}  // namespace
+
 Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   Mesh mesh;
   const size_t nt = in.num_triangles;
@@ -72,25 +102,74 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
       for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
     }
   });
-  const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
-  const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
-  if (width == 8) {
-    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data(), opt);
-    mesh.bvh8.sah_cost = sah_cost(binary, options);
-  } else {
-    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data(), opt);
-    mesh.bvh.sah_cost = sah_cost(binary, options);
-  }
-  if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);
-  if (in.corner_normals) {
-    const vec3* n = reinterpret_cast<const vec3*>(in.corner_normals);
-    mesh.corner_normals.assign(n, n + 3 * nt);
-  }
-  if (in.corner_uvs) {
-    const vec2* uv = reinterpret_cast<const vec2*>(in.corner_uvs);
-    mesh.corner_uvs.assign(uv, uv + 3 * nt);
-  }
+  attach_tree(mesh, binary, opt, options);
+  copy_attributes(mesh, in);
   return mesh;
+}
+
+Mesh prepare_mesh(const MeshInput& in) {
+  Mesh mesh;
+  const size_t nt = in.num_triangles;
+  mesh.num_input_triangles = nt;
+  const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
+  // The same tests as build_mesh: indices in range, finite corners, no two
+  // corners equal (those are counted apart).
+  std::vector<uint8_t> keep(nt, 0);
+  std::atomic<size_t> degenerate{0};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    size_t block_degenerate = 0;
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t* idx = in.indices + 3 * i;
+      if (!(idx[0] < in.num_vertices && idx[1] < in.num_vertices && idx[2] < in.num_vertices)) continue;
+      const vec3 &a = pos[idx[0]], &b = pos[idx[1]], &c = pos[idx[2]];
+      if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
+      if (a == b || b == c || c == a) {
+        ++block_degenerate;
+        continue;
+      }
+      keep[i] = 1;
+    }
+    degenerate += block_degenerate;
+  });
+  for (uint32_t i = 0; i < nt; ++i)
+    if (keep[i]) mesh.prim_ids.push_back(i);
+  const size_t kept = mesh.prim_ids.size();
+  mesh.num_degenerate_triangles = degenerate.load();
+  mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
+  mesh.tri_verts.resize(3 * kept);
+  AABB bounds;
+  for (size_t i = 0; i < kept; ++i) {
+    const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
+    for (int k = 0; k < 3; ++k) bounds.grow(mesh.tri_verts[3 * i + k] = pos[idx[k]]);
+  }
+  mesh.bvh.bounds = bounds;  // Mesh::bounds() without a tree
+  copy_attributes(mesh, in);
+  return mesh;
+}
+
+void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
+  if (mesh.has_bvh() || mesh.prim_ids.empty()) return;
+  const size_t n = mesh.prim_ids.size();
+  std::vector<AABB> boxes(n);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i)
+      for (int k = 0; k < 3; ++k) boxes[i].grow(mesh.tri_verts[3 * i + k]);
+  });
+  BuildOptions opt = options;
+  if (opt.sah_block_size <= 0) opt.sah_block_size = 4;  // Tri4 leaves
+  opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
+  BVH binary = build_bvh(boxes.data(), n, opt);
+  // Leaf order: binary.prim_order indexes the prepared order.
+  std::vector<vec3> verts(3 * binary.prim_order.size());
+  std::vector<uint32_t> ids(binary.prim_order.size());
+  for (size_t i = 0; i < ids.size(); ++i) {
+    const uint32_t j = binary.prim_order[i];
+    ids[i] = mesh.prim_ids[j];
+    for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
+  }
+  mesh.tri_verts.swap(verts);
+  mesh.prim_ids.swap(ids);
+  attach_tree(mesh, binary, opt, options);
 }
 
 bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit, TraversalOrder order) {

@@ -38,6 +38,7 @@ struct Mesh {
   size_t num_degenerate_triangles = 0;  // two equal corners: never hit, left out
 
   AABB bounds() const { return bvh8.empty() ? bvh.bounds : bvh8.bounds; }
+  bool has_bvh() const { return !bvh8.empty() || !bvh.empty(); }
   int width() const { return bvh8.empty() ? 4 : 8; }
   uint32_t slot(uint32_t prim_id) const { return material_slots.empty() ? 0 : material_slots[prim_id]; }
   size_t memory_bytes() const;
@@ -47,6 +48,15 @@ struct Mesh {
 // and stores the triangles in leaf order. Invalid triangles are skipped and
 // counted, never stored.
 Mesh build_mesh(const MeshInput& in, const BuildOptions& options = {});
+
+// The same validation and triangles without a BVH (input order; bounds()
+// works): Scene::commit builds trees only for the meshes it does not merge
+// into its render-space BLAS, so a scene's single-use meshes are not built
+// twice.
+Mesh prepare_mesh(const MeshInput& in);
+// Builds a prepared mesh's BVH, putting its triangles in leaf order; does
+// nothing if it has one.
+void build_mesh_bvh(Mesh& mesh, const BuildOptions& options = {});
 
 struct MeshHit {
   float t, u, v;

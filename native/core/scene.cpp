@@ -1,5 +1,7 @@
 #include "scene.h"
 
+#include <algorithm>
+
 #include <tbb/parallel_for.h>
 
 #include "traverse.h"
@@ -162,6 +164,14 @@ void Scene::commit() {
   rebase_on_camera();
   tlas_items_.clear();
   merge_single_use_instances(tlas_items_);
+  // Trees for the meshes the TLAS walks (add_mesh prepares meshes without
+  // one: most are merged, and were built twice).
+  std::vector<uint32_t> unbuilt;
+  for (uint32_t id : tlas_items_)
+    if (id != kMergedItem && !meshes[instances[id].mesh].has_bvh()) unbuilt.push_back(instances[id].mesh);
+  std::sort(unbuilt.begin(), unbuilt.end());
+  unbuilt.erase(std::unique(unbuilt.begin(), unbuilt.end()), unbuilt.end());
+  tbb::parallel_for(size_t(0), unbuilt.size(), [&](size_t k) { build_mesh_bvh(meshes[unbuilt[k]]); });
   std::vector<AABB> boxes(tlas_items_.size());
   for (size_t k = 0; k < tlas_items_.size(); ++k) {
     const uint32_t id = tlas_items_[k];

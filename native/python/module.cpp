@@ -254,14 +254,14 @@ PYBIND11_MODULE(_core, m) {
             Mesh mesh;
             {
               py::gil_scoped_release release;
-              mesh = build_mesh(in);
+              mesh = prepare_mesh(in);  // its BVH: Scene::commit, unless merged
             }
             s.meshes.push_back(std::move(mesh));
             return s.meshes.size() - 1;
           },
           py::arg("positions"), py::arg("indices"), py::arg("material_slots") = py::none(),
           py::arg("corner_normals") = py::none(), py::arg("corner_uvs") = py::none(),
-          "Adds a mesh in object space and builds its BVH; returns its index.")
+          "Adds a mesh in object space (its BVH is built at commit, unless the mesh is merged into the scene's render-space BVH); returns its index.")
       .def("mesh_skipped_triangles", [](const Scene& s, size_t i) { return s.meshes.at(i).num_skipped_triangles; })
       .def(
           "add_instance",

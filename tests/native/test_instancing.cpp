@@ -152,7 +152,9 @@ TEST(Instancing, ThousandInstancesStoreOneMesh) {
 // report the instance and its mesh's triangle as before (checked against
 // brute force over every instance's world-space triangles), and the merged
 // meshes' own trees are freed, so memory does not double.
-TEST(Instancing, SingleUseMeshesShareOneBLAS) {
+// prepared: meshes added as the add-on adds them (prepare_mesh, no tree
+// until commit builds one for the meshes it does not merge).
+static void check_single_use_meshes_share_one_blas(bool prepared) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u01(0.0f, 1.0f);
   auto soup = [&](int n) {
@@ -172,14 +174,17 @@ TEST(Instancing, SingleUseMeshesShareOneBLAS) {
   size_t mesh_bytes = 0;
   for (int m = 0; m < 6; ++m) {
     soups.push_back(soup(300 + 50 * m));
-    s.meshes.push_back(build_mesh(input_of(soups.back())));
-    mesh_bytes += s.meshes.back().memory_bytes();
+    s.meshes.push_back(prepared ? prepare_mesh(input_of(soups.back())) : build_mesh(input_of(soups.back())));
+    mesh_bytes += prepared ? build_mesh(input_of(soups.back())).memory_bytes() : s.meshes.back().memory_bytes();
   }
   // Meshes 0-4 placed once each, mesh 5 three times.
   for (int i = 0; i < 8; ++i) s.add_instance(uint32_t(std::min(i, 5)), placement(i, 2, 1.1f), {});
   s.commit();
   EXPECT_EQ(s.num_merged_instances(), 5u);
   EXPECT_LT(s.memory_bytes(), mesh_bytes * 13 / 10) << "merging kept two trees per mesh";
+  // Only the instanced mesh has (or, prepared, was given) a tree of its own.
+  for (int m = 0; m < 5; ++m) EXPECT_FALSE(s.meshes[m].has_bvh()) << "mesh " << m;
+  EXPECT_TRUE(s.meshes[5].has_bvh());
 
   const AABB sb = s.bounds();
   size_t hits = 0, differ = 0, rays = 0;
@@ -215,3 +220,9 @@ TEST(Instancing, SingleUseMeshesShareOneBLAS) {
   EXPECT_GT(hits, rays / 4);
   EXPECT_LE(differ, rays / 500) << differ << " of " << rays << " rays differ from brute force";
 }
+
+TEST(Instancing, SingleUseMeshesShareOneBLAS) { check_single_use_meshes_share_one_blas(false); }
+
+// The add-on's meshes: a single-use mesh's tree is never built (before,
+// every mesh got a BLAS in add_mesh that the merge then threw away).
+TEST(Instancing, PreparedMeshesGetATreeOnlyWhenTheTLASWalksThem) { check_single_use_meshes_share_one_blas(true); }
