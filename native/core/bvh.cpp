@@ -283,9 +283,13 @@ struct FastBuilder {
   const BuildOptions& opt;
   std::unique_ptr<PrimRef[]> refs;  // uninitialised: every one is written before it is read
   uint32_t num_refs = 0;
-  // Scatter buffer of the parallel partitions, allocated once per build
-  // (uninitialised): concurrent partitions work on disjoint [begin, end).
+  // The other buffer of the parallel partitions, allocated once per build
+  // (uninitialised): a parallel partition scatters a range from one buffer
+  // into the other (no copy back), so a subtree's range lives in buf[side];
+  // concurrent partitions work on disjoint [begin, end).
   std::unique_ptr<PrimRef[]> scratch;
+  PrimRef* buf[2] = {nullptr, nullptr};
+  uint32_t* prim_order = nullptr;  // written by the leaves, from their references
   BVHArray<BVHNode> nodes;
   uint32_t block;
   int nb;
@@ -319,7 +323,7 @@ struct FastBuilder {
   // Neighbouring references mostly fall into the same bin, so every update
   // waits for the previous one's store; large ranges alternate between two
   // bin sets to halve that chain, then merge them.
-  void bin_range(Bins& bins, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
+  void bin_range(Bins& bins, const PrimRef* refs, uint32_t begin, uint32_t end, __m128 cmin, __m128 scale) const {
     const __m128 maxb = _mm_set1_ps(float(bins.n - 1));
     uint32_t i = begin;
     if (end - begin >= 256) {
@@ -333,7 +337,8 @@ struct FastBuilder {
     for (; i < end; ++i) bin_one(bins, refs[i], cmin, scale, maxb);
   }
 
-  Split find_split(uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out, __m128& scale_out) const {
+  Split find_split(const PrimRef* refs, uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out,
+                   __m128& scale_out) const {
     Split best;
     const __m128 cmin = cbox.lo;  // centroid boxes are doubled (centroid2) throughout
     const __m128 ext = _mm_sub_ps(cbox.hi, cmin);
@@ -353,11 +358,11 @@ struct FastBuilder {
     if (opt.parallel && n > 65536) {
       tbb::combinable<Bins> local([&] { return Bins(nb); });
       tbb::parallel_for(tbb::blocked_range<uint32_t>(begin, end, 16384), [&](const tbb::blocked_range<uint32_t>& r) {
-        bin_range(local.local(), r.begin(), r.end(), cmin, scale);
+        bin_range(local.local(), refs, r.begin(), r.end(), cmin, scale);
       });
       local.combine_each([&](const Bins& b) { bins.merge(b); });
     } else {
-      bin_range(bins, begin, end, cmin, scale);
+      bin_range(bins, refs, begin, end, cmin, scale);
     }
     // Sweep all three axes at once: right-to-left areas and block counts,
     // then left to right; per axis the first bin of least cost wins (strict <,
@@ -399,9 +404,13 @@ struct FastBuilder {
     return best;
   }
 
-  void make_leaf(BVHNode& node, uint32_t begin, uint32_t end) {
+  void make_leaf(BVHNode& node, const PrimRef* refs, uint32_t begin, uint32_t end) {
     node.first = begin;
     node.count = end - begin;
+    for (uint32_t i = begin; i < end; ++i) {
+      const float w = _mm_cvtss_f32(_mm_shuffle_ps(refs[i].lo, refs[i].lo, _MM_SHUFFLE(3, 3, 3, 3)));
+      std::memcpy(&prim_order[i], &w, 4);
+    }
   }
 
   static constexpr int kMaxSAHDepth = 32;
@@ -411,12 +420,13 @@ struct FastBuilder {
   // Stable partition of a large range in parallel (the top levels, where the
   // serial in-place partition would leave the other threads idle): blocks
   // count and bound their left/right references, a prefix sum gives each
-  // block its output offsets, the references scatter to a buffer and are
-  // copied back. The block size does not depend on the thread count, so the
-  // result is the same however many threads run.
+  // block its output offsets, the references scatter from `refs` to `out`
+  // (the other buffer; the children continue there). The block size does not
+  // depend on the thread count, so the result is the same however many
+  // threads run.
   template <typename LeftOf>
-  uint32_t parallel_partition(uint32_t begin, uint32_t end, const LeftOf& left_of, SSEBox& lbox, SSEBox& rbox,
-                              SSEBox& lcbox, SSEBox& rcbox) {
+  uint32_t parallel_partition(const PrimRef* refs, PrimRef* out, uint32_t begin, uint32_t end, const LeftOf& left_of,
+                              SSEBox& lbox, SSEBox& rbox, SSEBox& lcbox, SSEBox& rcbox) {
     const uint32_t n = end - begin;
     const uint32_t nblocks = (n + kPartitionBlock - 1) / kPartitionBlock;
     struct Part {
@@ -454,15 +464,11 @@ struct FastBuilder {
       roff[k] = r;
       r += std::min(end, begin + (k + 1) * kPartitionBlock) - (begin + k * kPartitionBlock) - parts[k].left;
     }
-    PrimRef* tmp = scratch.get() + begin;
+    PrimRef* tmp = out + begin;
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       uint32_t l = loff[k], rr = roff[k];
       const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
       for (uint32_t i = b0; i < b1; ++i) tmp[left_of(refs[i]) ? l++ : rr++] = refs[i];
-    });
-    tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
-      const uint32_t b0 = k * kPartitionBlock, b1 = std::min(n, b0 + kPartitionBlock);
-      std::copy(tmp + b0, tmp + b1, refs.get() + begin + b0);
     });
     return begin + total_left;
   }
@@ -472,11 +478,10 @@ struct FastBuilder {
   // taken, so they stay in registers (growing the SSEBox out-parameters
   // directly went through memory, a store-to-load chain per reference).
   template <typename LeftOf>
-  uint32_t serial_partition(uint32_t begin, uint32_t end, const LeftOf& left_of, SSEBox& lbox, SSEBox& rbox,
+  uint32_t serial_partition(PrimRef* r, uint32_t begin, uint32_t end, const LeftOf& left_of, SSEBox& lbox, SSEBox& rbox,
                             SSEBox& lcbox, SSEBox& rcbox) {
     __m128 llo = _mm_set1_ps(kInf), lhi = _mm_set1_ps(-kInf), lclo = llo, lchi = lhi;
     __m128 rlo = llo, rhi = lhi, rclo = llo, rchi = lhi;
-    PrimRef* r = refs.get();
     uint32_t i = begin, j = end;
     for (;;) {
       for (; i < j; ++i) {
@@ -533,8 +538,9 @@ struct FastBuilder {
     double leaf_area;     // sum over its leaves of count x half area
   };
 
-  Result build(uint32_t node_index, NodeAlloc& alloc, uint32_t begin, uint32_t end, const SSEBox& box, const SSEBox& cbox,
-               int depth) {
+  Result build(uint32_t node_index, NodeAlloc& alloc, int side, uint32_t begin, uint32_t end, const SSEBox& box,
+               const SSEBox& cbox, int depth) {
+    PrimRef* const refs = buf[side];
     BVHNode& node = nodes[node_index];
     const AABB b = box.aabb();
     node.lo = b.lo;
@@ -542,25 +548,26 @@ struct FastBuilder {
     const uint32_t n = end - begin;
     const double area = b.half_area();
     const Result leaf{0.0, area * n};
-    if (n <= 1) return make_leaf(node, begin, end), leaf;
+    if (n <= 1) return make_leaf(node, refs, begin, end), leaf;
     uint32_t mid = begin;
     SSEBox lbox, rbox, lcbox, rcbox;
     bool have_boxes = false;
+    int child_side = side;
     // At most one block that fits a leaf: a split costs the traversal step
     // plus at least the children's triangles, never less than the leaf, so
     // the SAH would make it a leaf anyway; skip the binning.
     if (n <= block && n <= uint32_t(opt.max_leaf_size) && opt.traversal_cost >= opt.intersection_cost)
-      return make_leaf(node, begin, end), leaf;
+      return make_leaf(node, refs, begin, end), leaf;
     if (depth >= kMaxSAHDepth) {
-      if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, begin, end), leaf;
+      if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, refs, begin, end), leaf;
     } else {
       __m128 cmin, scale;
-      Split split = find_split(begin, end, cbox, cmin, scale);
+      Split split = find_split(refs, begin, end, cbox, cmin, scale);
       const float leaf_cost = opt.intersection_cost * blocks(n);
       const float split_cost =
           split.axis < 0 ? kInf : opt.traversal_cost + opt.intersection_cost * split.cost / box.half_area();
       if (n <= uint32_t(opt.max_leaf_size) && (leaf_cost <= split_cost || split.axis < 0))
-        return make_leaf(node, begin, end), leaf;
+        return make_leaf(node, refs, begin, end), leaf;
       if (split.axis >= 0) {
         // The binning's own arithmetic, on the split axis only.
         const __m128i pivot = _mm_set1_epi32(int(split.index));
@@ -570,12 +577,12 @@ struct FastBuilder {
           return (_mm_movemask_ps(_mm_castsi128_ps(_mm_cmplt_epi32(bi, pivot))) & axis_bit) != 0;
         };
         if (opt.parallel && n > kParallelPartition) {
-          mid = parallel_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
-          have_boxes = true;
+          mid = parallel_partition(refs, buf[side ^ 1], begin, end, left_of, lbox, rbox, lcbox, rcbox);
+          child_side = side ^ 1;
         } else {
-          mid = serial_partition(begin, end, left_of, lbox, rbox, lcbox, rcbox);
-          have_boxes = true;
+          mid = serial_partition(refs, begin, end, left_of, lbox, rbox, lcbox, rcbox);
         }
+        have_boxes = true;
       }
     }
     if (mid == begin || mid == end) {  // inseparable centroids or no split: by count
@@ -583,11 +590,12 @@ struct FastBuilder {
       have_boxes = false;
     }
     if (!have_boxes) {
+      const PrimRef* in = buf[child_side];  // a parallel partition to one side moved them all there
       lbox = rbox = lcbox = rcbox = SSEBox{};
       for (uint32_t i = begin; i < end; ++i) {
-        const __m128 c = centroid2(refs[i]);
-        if (i < mid) lbox.grow(lo_of(refs[i]), refs[i].hi), lcbox.grow(c, c);
-        else rbox.grow(lo_of(refs[i]), refs[i].hi), rcbox.grow(c, c);
+        const __m128 c = centroid2(in[i]);
+        if (i < mid) lbox.grow(lo_of(in[i]), in[i].hi), lcbox.grow(c, c);
+        else rbox.grow(lo_of(in[i]), in[i].hi), rcbox.grow(c, c);
       }
     }
     const uint32_t left = alloc_pair(alloc);
@@ -595,14 +603,14 @@ struct FastBuilder {
     node.count = 0;
     Result l, r;
     if (opt.parallel && n > kParallelSubtree) {
-      tbb::parallel_invoke([&] { l = build(left, alloc, begin, mid, lbox, lcbox, depth + 1); },
+      tbb::parallel_invoke([&] { l = build(left, alloc, child_side, begin, mid, lbox, lcbox, depth + 1); },
                            [&] {
                              NodeAlloc own;
-                             r = build(left + 1, own, mid, end, rbox, rcbox, depth + 1);
+                             r = build(left + 1, own, child_side, mid, end, rbox, rcbox, depth + 1);
                            });
     } else {
-      l = build(left, alloc, begin, mid, lbox, lcbox, depth + 1);
-      r = build(left + 1, alloc, mid, end, rbox, rcbox, depth + 1);
+      l = build(left, alloc, child_side, begin, mid, lbox, lcbox, depth + 1);
+      r = build(left + 1, alloc, child_side, mid, end, rbox, rcbox, depth + 1);
     }
     return {area + l.inner_area + r.inner_area, l.leaf_area + r.leaf_area};
   }
@@ -657,24 +665,17 @@ BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOpti
   SSEBox box, cbox;
   for (const RefBlock& blk : blocks) box.grow(blk.box), cbox.grow(blk.cbox);
   if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
+  b.buf[0] = b.refs.get();
+  b.buf[1] = b.scratch.get();
   b.nodes.resize(FastBuilder::node_capacity(total));
+  bvh.prim_order.resize(total);
+  b.prim_order = bvh.prim_order.data();
   FastBuilder::NodeAlloc alloc;
-  const FastBuilder::Result res = b.build(0, alloc, 0, total, box, cbox, 0);
+  const FastBuilder::Result res = b.build(0, alloc, 0, 0, total, box, cbox, 0);
   b.nodes.resize(b.node_count.load());  // no shrink-to-fit copy: the rest was never touched
   bvh.nodes = std::move(b.nodes);
   bvh.sah_inner_area = res.inner_area;
   bvh.sah_leaf_area = res.leaf_area;
-  bvh.prim_order.resize(total);
-  auto order = [&](size_t begin, size_t end) {
-    for (size_t i = begin; i < end; ++i) {
-      const float w = _mm_cvtss_f32(_mm_shuffle_ps(b.refs[i].lo, b.refs[i].lo, _MM_SHUFFLE(3, 3, 3, 3)));
-      std::memcpy(&bvh.prim_order[i], &w, 4);
-    }
-  };
-  if (options.parallel && total > kRefBlock)
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, total, kRefBlock), [&](const tbb::blocked_range<size_t>& r) { order(r.begin(), r.end()); });
-  else
-    order(0, total);
   return bvh;
 }
 
