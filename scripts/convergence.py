@@ -41,6 +41,10 @@ ap.add_argument("--width", type=int, default=160)
 ap.add_argument("--ladder", type=int, nargs="+", default=[4, 16, 64, 256])
 ap.add_argument("--ref-samples", type=int, default=1024)
 ap.add_argument("--bounces", type=int, default=8)
+ap.add_argument("--runs", type=int, default=3,
+                help="renders per point of the sample ladder (seeds 0..N-1, engines alternating): time = median wall "
+                     "time, error = sqrt of the mean MSE over the seeds (one image's error swings with its rare bright "
+                     "samples; efficiency is about the expected error)")
 ap.add_argument("--bounce-ladder", type=int, nargs="+", default=[0, 1, 2, 4, 8])
 ap.add_argument("--bounce-samples", type=int, default=64)
 ap.add_argument("--adaptive-scenes", nargs="*", default=["veach_mis.blend", "modern_hall.blend"])
@@ -138,11 +142,44 @@ for path in args.scenes:
               flush=True)
         return row
 
+    def measured_runs(eng, spp, runs):
+        """One ladder point from several seeds: median time, mean MSE."""
+        own_mse, other_mse, own_rel, walls, est, true_rel = [], [], [], [], [], []
+        for img, wall, st in runs:
+            own, other = metrics(img, refs[eng]), metrics(img, refs.get("CYCLES" if eng == "TESSERA" else "TESSERA", refs[eng]))
+            own_mse.append(own["rmse"] ** 2), other_mse.append(other["rmse"] ** 2), own_rel.append(own["relmse"])
+            walls.append(wall), true_rel.append(own["true_rel_error"])
+            if "estimated_error" in st:
+                est.append(st["estimated_error"])
+        wall = float(np.median(walls))
+        rmse = math.sqrt(float(np.mean(own_mse)))
+        st = runs[-1][2]
+        row = dict(scene=name, engine=eng, ladder="samples", samples=spp, bounces=args.bounces, seconds=wall,
+                   render_seconds=st.get("render_seconds", ""), runs=len(runs),
+                   seconds_min=min(walls), seconds_max=max(walls),
+                   mean_samples=st.get("mean_samples", spp), rays=st.get("rays", ""),
+                   rmse_own=rmse, relmse_own=float(np.mean(own_rel)), rmse_other=math.sqrt(float(np.mean(other_mse))),
+                   efficiency_own=1.0 / (rmse ** 2 * wall),
+                   true_rel_error=math.sqrt(float(np.mean(np.square(true_rel)))),
+                   est_error=float(np.mean(est)) if est else "",
+                   # The estimate predicts the expected error: mean estimate over RMS true error,
+                   # and the per-seed ratios' range.
+                   est_over_true=(float(np.mean(est)) / math.sqrt(float(np.mean(np.square(true_rel))))) if est else "",
+                   est_over_true_min=min(e / t for e, t in zip(est, true_rel)) if est else "",
+                   est_over_true_max=max(e / t for e, t in zip(est, true_rel)) if est else "")
+        rows.append(row)
+        print(f"  samples {eng} spp={spp} x{len(runs)}: {wall:.2f} s (median), rmse own {rmse:.5f} "
+              f"other {row['rmse_other']:.5f}" + (f", est/true {row['est_over_true']:.2f}" if est else ""), flush=True)
+        return row
+
     ladder_rows = {e: [] for e in ENGINES}
     for spp in ([] if args.adaptive_only else args.ladder):
-        for eng in ENGINES:  # alternate engines so machine load hits both alike
-            img, wall, st = run(path, eng, spp, args.bounces)
-            ladder_rows[eng].append(measured(eng, "samples", spp, args.bounces, img, wall, st))
+        runs = {e: [] for e in ENGINES}
+        for seed in range(args.runs):
+            for eng in ENGINES if seed % 2 == 0 else ENGINES[::-1]:  # alternate so machine load hits both alike
+                runs[eng].append(run(path, eng, spp, args.bounces, seed=seed))
+        for eng in ENGINES:
+            ladder_rows[eng].append(measured_runs(eng, spp, runs[eng]))
     bounce_rows = {e: [] for e in ENGINES}
     for b in ([] if args.adaptive_only else args.bounce_ladder):
         for eng in ENGINES:
@@ -269,7 +306,10 @@ for path in args.scenes:
     cmd = "blender -b --factory-startup --python scripts/convergence.py -- " + " ".join(argv)
     lines = ["# Convergence: error against time, Tessera and Cycles", "",
              f"Blender {bpy.app.version_string}, {os.cpu_count()} cores shared with other work, width {args.width} px, "
-             f"{args.bounces} max bounces, references {args.ref_samples} samples (seed 1000; ladder seed 0). Time is the "
+             f"{args.bounces} max bounces, references {args.ref_samples} samples (seed 1000). Each point of the sample "
+             f"ladder: {args.runs} renders per engine (seeds 0..{args.runs - 1}, the engines taking turns), time = their "
+             "median wall time, RMSE = sqrt of their mean MSE (the expected error; one image's error swings with its "
+             "rare bright samples). The bounce ladder: one render (seed 0) per point. Time is the "
              "wall time of the whole render call (sync/export, BVH, render, EXR write), so small sample counts "
              "are dominated by fixed costs, more so for Cycles. MSE against a reference includes the reference's "
              f"own noise (~ MSE(n) x n / {args.ref_samples}).", "",
@@ -287,12 +327,15 @@ for path in args.scenes:
             lines.append(f"| {s['name']} | {s['c64']['rmse_own']:.5f} | {s['c64']['seconds']:.2f} | "
                          f"{s['ratio']:.2f} | {t64['rmse_own']:.5f} / {t64['rmse_other']:.5f} | {s['c64']['rmse_other']:.5f} |")
     lines += ["", "## Tessera's error estimate against the true error", "",
-              "Estimated relative RMSE (independent replicates of a sparse pixel grid, `Film::estimated_relative_error`) over "
-              "the true relative RMSE (RMSE / mean of Tessera's reference, which adds the reference's own noise).", "",
+              "Estimated relative RMSE (`Film::estimated_relative_error`) over the true relative RMSE (RMSE / mean of "
+              "Tessera's reference, which adds the reference's own noise): the mean estimate over the seeds against "
+              "the RMS of their true errors, and in brackets the range of the per-seed ratios.", "",
               "| scene | " + " | ".join(f"{n} spp" for n in args.ladder) + " |",
               "|---|" + "---|" * len(args.ladder)]
     for s in summary:
-        lines.append(f"| {s['name']} | " + " | ".join(f"{r['est_over_true']:.2f}" for r in s["ladder"]["TESSERA"]) + " |")
+        lines.append(f"| {s['name']} | " + " | ".join(
+            f"{r['est_over_true']:.2f} ({r['est_over_true_min']:.2f}-{r['est_over_true_max']:.2f})"
+            for r in s["ladder"]["TESSERA"]) + " |")
     lines += ["", "## Adaptive against uniform sampling at the same time budget (Tessera)", "",
               "Budget: the median render time of 3 uniform Tessera renders at N samples; every run gets it as time "
               "limit, the methods taking turns per seed. Adaptive: min samples "
@@ -313,14 +356,15 @@ for path in args.scenes:
                          f"{a['rmse_own'] / u['rmse_own']:.2f} | {a['seed_ratio_median']:.2f} "
                          f"({a['seed_wins']}/{args.adaptive_seeds}) | {u['mean_samples']:.1f} | {a['mean_samples']:.1f} | {eq} |")
     lines += ["", "## Runs", "",
-              "| scene | engine | ladder | samples | bounces | s | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "| scene | engine | ladder | samples | bounces | runs | s (median; min-max) | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in summary:
         for part in ("ladder", "bounces"):
             for eng in ENGINES:
                 for r in s[part][eng]:
+                    spread = f"; {r['seconds_min']:.2f}-{r['seconds_max']:.2f}" if r.get("runs", 1) > 1 else ""
                     lines.append(f"| {s['name']} | {eng.title()} | {r['ladder']} | {r['samples']} | {r['bounces']} | "
-                                 f"{r['seconds']:.2f} | {r['rmse_own']:.5f} | {r['relmse_own']:.5f} | "
+                                 f"{r.get('runs', 1)} | {r['seconds']:.2f}{spread} | {r['rmse_own']:.5f} | {r['relmse_own']:.5f} | "
                                  f"{r['rmse_other']:.5f} | {r['efficiency_own']:.3g} |")
     lines += ["", "Plots: `<scene>.png` (left: RMSE against time over the sample ladder; right: RMSE against max "
               "bounces). All runs: `convergence.csv`.", "", "Command:", "", "```sh", cmd, "```", ""]
