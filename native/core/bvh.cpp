@@ -16,6 +16,7 @@
 #include <atomic>
 #include <memory>
 #include <numeric>
+#include <stdexcept>
 
 namespace tessera {
 
@@ -337,8 +338,12 @@ struct FastBuilder {
     for (; i < end; ++i) bin_one(bins, refs[i], cmin, scale, maxb);
   }
 
+  // Large ranges (those partitioned in parallel) bin in blocks of
+  // kPartitionBlock references, and each block's bin counts go to
+  // block_counts (per block, axis-major, nb per axis): the parallel partition
+  // takes its blocks' left counts from them instead of a counting pass.
   Split find_split(const PrimRef* refs, uint32_t begin, uint32_t end, const SSEBox& cbox, __m128& cmin_out,
-                   __m128& scale_out) const {
+                   __m128& scale_out, std::vector<uint32_t>& block_counts, int& nb_out) const {
     Split best;
     const __m128 cmin = cbox.lo;  // centroid boxes are doubled (centroid2) throughout
     const __m128 ext = _mm_sub_ps(cbox.hi, cmin);
@@ -354,11 +359,21 @@ struct FastBuilder {
     const __m128 scale = _mm_load_ps(sc);
     cmin_out = cmin;
     scale_out = scale;
+    nb_out = nb;
     Bins bins(nb);
-    if (opt.parallel && n > 65536) {
+    if (opt.parallel && n > kParallelPartition) {
+      const uint32_t nblocks = (n + kPartitionBlock - 1) / kPartitionBlock;
+      block_counts.resize(size_t(nblocks) * 3 * nb);
       tbb::combinable<Bins> local([&] { return Bins(nb); });
-      tbb::parallel_for(tbb::blocked_range<uint32_t>(begin, end, 16384), [&](const tbb::blocked_range<uint32_t>& r) {
-        bin_range(local.local(), refs, r.begin(), r.end(), cmin, scale);
+      tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
+        Bins& bl = local.local();
+        uint32_t* counts = block_counts.data() + size_t(k) * 3 * nb;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < nb; ++b) counts[a * nb + b] = bl.bin[a][b].count;
+        const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
+        bin_range(bl, refs, b0, b1, cmin, scale);
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < nb; ++b) counts[a * nb + b] = bl.bin[a][b].count - counts[a * nb + b];
       });
       local.combine_each([&](const Bins& b) { bins.merge(b); });
     } else {
@@ -418,58 +433,56 @@ struct FastBuilder {
   static constexpr uint32_t kPartitionBlock = 16384;
 
   // Stable partition of a large range in parallel (the top levels, where the
-  // serial in-place partition would leave the other threads idle): blocks
-  // count and bound their left/right references, a prefix sum gives each
-  // block its output offsets, the references scatter from `refs` to `out`
-  // (the other buffer; the children continue there). The block size does not
-  // depend on the thread count, so the result is the same however many
-  // threads run.
+  // serial in-place partition would leave the other threads idle) in one
+  // pass: each block's left count is the sum of its bin counts below the
+  // split (`left`, from the binning: left_of is the binning's arithmetic, so
+  // the two agree), a prefix sum gives each block its output offsets, and the
+  // references scatter from `refs` to `out` (the other buffer; the children
+  // continue there) while the blocks bound their left and right references.
+  // The block size does not depend on the thread count, so the result is the
+  // same however many threads run.
   template <typename LeftOf>
   uint32_t parallel_partition(const PrimRef* refs, PrimRef* out, uint32_t begin, uint32_t end, const LeftOf& left_of,
-                              SSEBox& lbox, SSEBox& rbox, SSEBox& lcbox, SSEBox& rcbox) {
+                              const std::vector<uint32_t>& left, SSEBox& lbox, SSEBox& rbox, SSEBox& lcbox,
+                              SSEBox& rcbox) {
     const uint32_t n = end - begin;
     const uint32_t nblocks = (n + kPartitionBlock - 1) / kPartitionBlock;
     struct Part {
-      uint32_t left = 0;
       SSEBox lb, rb, lcb, rcb;
     };
     std::vector<Part> parts(nblocks);
-    tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
-      Part& p = parts[k];
-      const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
-      SSEBox lb, rb, lcb, rcb;  // locals: kept in registers
-      uint32_t left = 0;
-      for (uint32_t i = b0; i < b1; ++i) {
-        const __m128 c = centroid2(refs[i]);
-        if (left_of(refs[i])) {
-          ++left;
-          lb.grow(lo_of(refs[i]), refs[i].hi);
-          lcb.grow(c, c);
-        } else {
-          rb.grow(lo_of(refs[i]), refs[i].hi);
-          rcb.grow(c, c);
-        }
-      }
-      p.left = left, p.lb = lb, p.rb = rb, p.lcb = lcb, p.rcb = rcb;
-    });
     std::vector<uint32_t> loff(nblocks), roff(nblocks);
     uint32_t total_left = 0;
-    for (uint32_t k = 0; k < nblocks; ++k) {
-      loff[k] = total_left;
-      total_left += parts[k].left;
-      lbox.grow(parts[k].lb), rbox.grow(parts[k].rb), lcbox.grow(parts[k].lcb), rcbox.grow(parts[k].rcb);
-    }
+    for (uint32_t k = 0; k < nblocks; ++k) loff[k] = total_left, total_left += left[k];
     uint32_t r = total_left;
     for (uint32_t k = 0; k < nblocks; ++k) {
       roff[k] = r;
-      r += std::min(end, begin + (k + 1) * kPartitionBlock) - (begin + k * kPartitionBlock) - parts[k].left;
+      r += std::min(end, begin + (k + 1) * kPartitionBlock) - (begin + k * kPartitionBlock) - left[k];
     }
     PrimRef* tmp = out + begin;
     tbb::parallel_for(uint32_t(0), nblocks, [&](uint32_t k) {
       uint32_t l = loff[k], rr = roff[k];
       const uint32_t b0 = begin + k * kPartitionBlock, b1 = std::min(end, b0 + kPartitionBlock);
-      for (uint32_t i = b0; i < b1; ++i) tmp[left_of(refs[i]) ? l++ : rr++] = refs[i];
+      SSEBox lb, rb, lcb, rcb;  // locals: kept in registers
+      for (uint32_t i = b0; i < b1; ++i) {
+        const __m128 lo = refs[i].lo, hi = refs[i].hi;
+        const __m128 c = centroid2(refs[i]);
+        if (left_of(refs[i])) {
+          lb.grow(xyz(lo), hi);
+          lcb.grow(c, c);
+          tmp[l++] = refs[i];
+        } else {
+          rb.grow(xyz(lo), hi);
+          rcb.grow(c, c);
+          tmp[rr++] = refs[i];
+        }
+      }
+      if (l != loff[k] + left[k]) throw std::logic_error("BVH build: partition disagrees with the binning");
+      Part& p = parts[k];
+      p.lb = lb, p.rb = rb, p.lcb = lcb, p.rcb = rcb;
     });
+    for (uint32_t k = 0; k < nblocks; ++k)
+      lbox.grow(parts[k].lb), rbox.grow(parts[k].rb), lcbox.grow(parts[k].lcb), rcbox.grow(parts[k].rcb);
     return begin + total_left;
   }
 
@@ -562,7 +575,9 @@ struct FastBuilder {
       if (n <= uint32_t(opt.max_leaf_size)) return make_leaf(node, refs, begin, end), leaf;
     } else {
       __m128 cmin, scale;
-      Split split = find_split(refs, begin, end, cbox, cmin, scale);
+      std::vector<uint32_t> block_counts;  // filled for ranges partitioned in parallel
+      int nbins = 0;
+      Split split = find_split(refs, begin, end, cbox, cmin, scale, block_counts, nbins);
       const float leaf_cost = opt.intersection_cost * blocks(n);
       const float split_cost =
           split.axis < 0 ? kInf : opt.traversal_cost + opt.intersection_cost * split.cost / box.half_area();
@@ -577,7 +592,12 @@ struct FastBuilder {
           return (_mm_movemask_ps(_mm_castsi128_ps(_mm_cmplt_epi32(bi, pivot))) & axis_bit) != 0;
         };
         if (opt.parallel && n > kParallelPartition) {
-          mid = parallel_partition(refs, buf[side ^ 1], begin, end, left_of, lbox, rbox, lcbox, rcbox);
+          // Each block's references left of the split: its counts in the bins before it.
+          const size_t nblocks = block_counts.size() / (3 * size_t(nbins));
+          std::vector<uint32_t> left(nblocks, 0);
+          for (size_t k = 0; k < nblocks; ++k)
+            for (uint32_t b = 0; b < split.index; ++b) left[k] += block_counts[(k * 3 + split.axis) * nbins + b];
+          mid = parallel_partition(refs, buf[side ^ 1], begin, end, left_of, left, lbox, rbox, lcbox, rcbox);
           child_side = side ^ 1;
         } else {
           mid = serial_partition(refs, begin, end, left_of, lbox, rbox, lcbox, rcbox);
