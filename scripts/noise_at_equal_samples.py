@@ -13,7 +13,8 @@ pixel sample; image means (bias check against Cycles' reference); Tessera's
 estimated relative error (the error-target mode's estimate) over the true
 relative RMSE against its reference, per seed, and the mean estimate over the
 seeds against the RMS of their true errors (what the estimate predicts: the
-expected error; single images swing with rare bright samples). References
+expected error; single images swing with rare bright samples), and a short
+table of both with each image's true error over the RMS (its own spread). References
 and Cycles renders are cached in --cache (delete Tessera's references there
 after a change that moves Tessera's image mean). Prints a markdown table and
 writes CACHE/results_TAG.json."""
@@ -92,6 +93,9 @@ for s in a.scenes:
         # estimate both swing with rare bright samples. Over the seeds: the
         # mean estimate against the RMS of the true relative errors.
         row[f"estimate_over_expected_{spp}"] = float(np.mean(est) / np.sqrt(np.mean(np.square(true_rel))))
+        # How far one image's true error strays from the RMS over the seeds:
+        # what an estimate of the expected error cannot follow.
+        row[f"true_over_rms_{spp}"] = [round(float(x / np.sqrt(np.mean(np.square(true_rel)))), 3) for x in true_rel]
     rows.append(row)
     print("ROW", json.dumps(row), flush=True)
 with open(os.path.join(a.cache, f"results_{a.tag}.json"), "w") as f:
@@ -106,3 +110,13 @@ for r in rows:
     expected = " | ".join(f"{r[f'estimate_over_expected_{n}']:.2f}" for n in a.spp)
     print(f"| {r['scene']} | {cells} | {r[f'rays_{a.spp[-1]}']:.2f} | {r[f'mean_{a.spp[-1]}'] / r['mean_ref_cycles']:.3f} | "
           f"{ratios} | {expected} |")
+# The estimate in short: per sample count, estimate / true over the seeds (min-max), [mean estimate / RMS true],
+# and (true / RMS true, min-max): the spread of one image's error itself.
+head = "| scene | " + " | ".join(f"{n} spp" for n in a.spp) + " |"
+print("\n" + head + "\n|" + "---|" * (head.count("|") - 1))
+for r in rows:
+    cells = []
+    for n in a.spp:
+        e, t = r[f"estimate_ratio_{n}"], r[f"true_over_rms_{n}"]
+        cells.append(f"{min(e):.2f}-{max(e):.2f} [{r[f'estimate_over_expected_{n}']:.2f}] ({min(t):.2f}-{max(t):.2f})")
+    print(f"| {r['scene']} | " + " | ".join(cells) + " |")

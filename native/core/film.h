@@ -35,7 +35,12 @@ namespace tessera {
 // shared scenes. Independent replicates measure it: a regular grid of pixels
 // (every stride-th column and row, at least kMinReplicatePixels of them)
 // also renders the same samples from an independently scrambled stream, kept
-// apart from the image.
+// apart from the image. The grid is a systematic sample of the image, which
+// misses error that sits on a few pixels (a small bright light seen directly
+// puts nearly all of veach_mis.blend's error on ~10 pixels), so replicates
+// also follow the error: from each estimate on, pixels with a bright sample
+// and their neighbours get a replicate too (at most as many as the grid has),
+// starting from the pixel's count then (film.cpp).
 class Film {
  public:
   static constexpr int kMinReplicatePixels = 256;
@@ -49,7 +54,7 @@ class Film {
     sum_[i] += L;
     sum_sq_[i] += double(L.x) * L.x + double(L.y) * L.y + double(L.z) * L.z;
     if (class_a(sample)) sum_a_[i] += L;
-    if (L.x + L.y + L.z > max_[i].x + max_[i].y + max_[i].z) max_[i] = L;
+    if (L.x + L.y + L.z > max_[i].x + max_[i].y + max_[i].z) max_[i] = L, max_index_[i] = sample;
   }
   // The sample classes that adaptive sampling compares (Cycles'
   // sample_is_class_A, after Christensen et al. 2018, "Progressive
@@ -70,10 +75,11 @@ class Film {
   void deactivate(size_t i) { active_[i] = 0; }
   vec3 mean(size_t i) const { return count_[i] > 0 ? sum_[i] / float(count_[i]) : vec3(0.0f); }
 
-  // The replicate slot of pixel (x, y) of the film, or -1 if it has none.
+  // The replicate slot of pixel (x, y) of the film, or -1 if it has none:
+  // the grid's pixels, and from each estimate on the bright pixels it chose.
+  // Read by the tiles during a pass; slots are only added between passes.
   int replicate_slot(int x, int y) const {
-    if (replicate_sum_.empty() || x % stride_ != 0 || y % stride_ != 0) return -1;
-    return (y / stride_) * replicate_columns_ + x / stride_;
+    return slot_of_.empty() ? -1 : slot_of_[size_t(y) * size_t(width_) + size_t(x)];
   }
   void add_replicate(int slot, const vec3& L) {
     replicate_sum_[size_t(slot)] += L;
@@ -81,6 +87,8 @@ class Film {
     if (L.x + L.y + L.z > m.x + m.y + m.z) m = L;
   }
   int replicate_stride() const { return stride_; }
+  size_t replicate_grid_size() const { return grid_slots_; }
+  size_t replicate_count() const { return replicate_sum_.size(); }  // grid and followed pixels
 
   // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
@@ -92,13 +100,19 @@ class Film {
   // bright samples (fireflies) carry it.
   double sample_variance(size_t i) const;
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
-  // channels) / mean pixel value, the variance from the replicates (above)
-  // and, from every pixel, the error its firefly (a sample over
-  // firefly_threshold x the image's mean pixel value) carries (film.cpp);
-  // firefly_threshold 0: the replicates alone. 0 without replicates.
+  // channels) / mean pixel value. Fireflies (a sample over firefly_threshold
+  // x the image's mean pixel value and over kFireflyDominance x the sum of
+  // the pixel's other samples) count as the error they put into their
+  // pixel, from every pixel; the rest from the replicates: a replicated pixel
+  // near a bright sample (over the threshold, within one pixel) for itself,
+  // the other pixels near one by the grid's, the remaining pixels by the
+  // grid's pixels that are not near one (film.cpp). Then, for the passes
+  // after this call, gives replicates to the brightest unreplicated pixels
+  // near a bright sample (up to the grid's count). firefly_threshold 0: the
+  // grid alone, nothing added. 0 without replicates.
   static constexpr double kFireflyThreshold = 16.0;
   static constexpr double kFireflyDominance = 2.0;  // x the sum of the pixel's other samples
-  double estimated_relative_error(double firefly_threshold = kFireflyThreshold) const;
+  double estimated_relative_error(double firefly_threshold = kFireflyThreshold);
 
  private:
   int width_ = 0, stride_ = 1, replicate_columns_ = 0;
@@ -107,8 +121,16 @@ class Film {
   std::vector<int> count_;
   std::vector<uint8_t> active_;
   std::vector<vec3> max_;  // per pixel: its brightest sample (largest RGB sum)
-  std::vector<vec3> replicate_sum_;  // per replicate slot: the replicate's sum (same count as the pixel)
-  std::vector<vec3> replicate_max_;  // per replicate slot: the replicate's brightest sample
+  std::vector<int> max_index_;  // per pixel: that sample's index
+  std::vector<int> slot_of_;    // per pixel: its replicate slot or -1 (empty: no replicates)
+  size_t grid_slots_ = 0;       // slots 0 .. grid_slots_ - 1 are the grid's
+  // Per replicate slot: the replicate's sum and brightest sample over the
+  // pixel's samples from start on (the same samples, scrambled independently),
+  // the pixel, start (the pixel's count when the slot was added; 0 on the
+  // grid) and the pixel's sum then.
+  std::vector<vec3> replicate_sum_, replicate_max_, replicate_start_sum_;
+  std::vector<int> replicate_pixel_, replicate_start_;
+  std::vector<float> bright_, near_bright_;  // scratch for the estimate (film.cpp)
 };
 
 }  // namespace tessera

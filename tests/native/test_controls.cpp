@@ -325,6 +325,80 @@ TEST(Controls, ErrorEstimateCountsFirefliesOffTheReplicateGrid) {
   EXPECT_LT(plain.estimated_relative_error(), t_plain * 1.5);
 }
 
+// Bright pixels off the replicate grid, each seeing a light in a share of its
+// samples (as the pixels around veach_mis.blend's smallest light): no sample
+// outweighs the rest of its pixel, so the firefly term does not count them,
+// and the grid does not hold them (the estimate was 0.01x the truth with the
+// grid and the firefly term alone). Rendered in passes as RenderSession
+// does, the estimate between passes gives the pixels near bright samples
+// replicates of their own (never more than the grid has), and from then on
+// counts them: within 1.5x of the expected error (known here; this image's
+// is 1.10x it; over five seeds 0.90-1.10x, the estimate 0.87-1.15x).
+TEST(Controls, ErrorEstimateFollowsBrightPixelsOffTheGrid) {
+  const int w = 48, h = 48;
+  // Pixels (odd x and y: off the grid) that see a 300x bright light in 30% of
+  // their samples; every other pixel 1 + uniform noise.
+  std::vector<std::pair<int, int>> lit;
+  for (int k = 0; k < 23; ++k) lit.emplace_back(1 + 2 * ((7 * k + 3) % 23), 1 + 2 * ((11 * k + 5) % 23));
+  std::vector<float> share(size_t(w) * h, 0.0f);
+  for (auto [x, y] : lit) share[size_t(y) * w + x] = 0.3f;
+  struct Rng {
+    uint32_t state;
+    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
+  };
+  auto sample = [&](size_t i, Rng& u) {
+    const float n = 0.25f * (u() - 0.5f);
+    return share[i] > 0.0f && u() < share[i] ? vec3(300.0f + n) : vec3(1.0f + n);
+  };
+  // Rendered in passes as RenderSession does: replicate samples for the
+  // pixels that have a slot, the estimate between passes. follow = false:
+  // firefly_threshold 0, so nothing is followed (the grid alone).
+  auto run = [&](Film& film, bool follow) {
+    film.resize(w, h, true);
+    Rng image{987654321u}, replicate{12345u};
+    int done = 0;
+    double estimate = 0.0;
+    for (int pass : {1, 1, 2, 4, 8, 16, 16, 16}) {
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const size_t i = size_t(y) * w + x;
+          for (int s = done; s < done + pass; ++s) film.add(i, s, sample(i, image));
+          const int slot = film.replicate_slot(x, y);
+          if (slot >= 0)
+            for (int s = done; s < done + pass; ++s) film.add_replicate(slot, sample(i, replicate));
+          film.set_count(i, done + pass);
+        }
+      done += pass;
+      estimate = follow ? film.estimated_relative_error() : film.estimated_relative_error(0.0);
+    }
+    return estimate;
+  };
+  Film film, grid;
+  const double estimate = run(film, true), grid_only = run(grid, false);
+  ASSERT_EQ(2, film.replicate_stride());
+  for (auto [x, y] : lit) ASSERT_LT(grid.replicate_slot(x, y), 0);
+  // The expected error: per pixel and channel, the variance of one sample
+  // (the noise's 1/48 and the light's share (1 - share) 299^2) over 64.
+  double mse = 0.0, expected = 0.0, mean = 0.0;
+  for (size_t i = 0; i < film.size(); ++i) {
+    const vec3 d = film.mean(i) - vec3(1.0f + 299.0f * share[i]);
+    mse += (double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z) / 3.0;
+    expected += (0.25 * 0.25 / 12.0 + share[i] * (1.0 - share[i]) * 299.0 * 299.0) / 64.0;
+    mean += 1.0 + 299.0 * share[i];
+    ASSERT_EQ(film.mean(i), grid.mean(i));
+  }
+  const double t = std::sqrt(expected / mean * film.size() / mean), image = std::sqrt(mse / film.size()) / (mean / film.size());
+  std::printf("64 samples: expected error %.4f, this image's %.4f, estimate %.4f, grid alone %.4f; %zu replicates (grid %zu)\n",
+              t, image, estimate, grid_only, film.replicate_count(), film.replicate_grid_size());
+  EXPECT_EQ(grid.replicate_count(), grid.replicate_grid_size());
+  EXPECT_GT(film.replicate_count(), film.replicate_grid_size());
+  EXPECT_LE(film.replicate_count(), 2 * film.replicate_grid_size());
+  for (auto [x, y] : lit) EXPECT_GE(film.replicate_slot(x, y), 0) << x << ", " << y;
+  EXPECT_LT(grid_only, t / 1.5);
+  EXPECT_GT(estimate, t / 1.5);
+  EXPECT_LT(estimate, t * 1.5);
+}
+
 TEST(Controls, ErrorTargetStopsWhenTheEstimateIsBelowIt) {
   Scene s;
   fixtures::build_cornell_box(s, 32, 32);
