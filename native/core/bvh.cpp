@@ -638,14 +638,14 @@ struct FastBuilder {
 
 BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOptions& options) {
   FastBuilder b(options);
-  // References of the valid boxes, in input order: blocks count theirs, a
-  // prefix sum places them (in parallel when allowed; same result).
+  // References of the valid boxes, in input order, in one pass over the
+  // boxes (as Embree's primref creation): each block writes its valid ones
+  // from its own start, as if all were valid, and bounds them; when some
+  // were not, the blocks move down to the offsets a prefix sum gives (in
+  // parallel through the scratch buffer when there is one). Same result with
+  // or without tasks.
   constexpr size_t kRefBlock = 16384;
   const size_t nblocks = (num_prims + kRefBlock - 1) / kRefBlock;
-  auto valid = [&](size_t i) {
-    const AABB& pb = prim_bounds[i];
-    return !pb.empty() && is_finite(pb.lo) && is_finite(pb.hi);
-  };
   struct RefBlock {
     uint32_t count = 0, offset = 0;
     SSEBox box, cbox;
@@ -655,36 +655,51 @@ BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOpti
     if (options.parallel && nblocks > 1) tbb::parallel_for(size_t(0), nblocks, body);
     else for (size_t k = 0; k < nblocks; ++k) body(k);
   };
+  BVH bvh;
+  if (num_prims == 0) return bvh;
+  b.refs.reset(new PrimRef[num_prims]);
   for_blocks([&](size_t k) {
-    uint32_t c = 0;
-    for (size_t i = k * kRefBlock, e = std::min(num_prims, i + kRefBlock); i < e; ++i) c += valid(i);
-    blocks[k].count = c;
+    RefBlock& blk = blocks[k];
+    PrimRef* const start = b.refs.get() + k * kRefBlock;
+    PrimRef* out = start;
+    SSEBox bx, cb;  // locals: kept in registers
+    const __m128 zero = _mm_setzero_ps();
+    for (size_t i = k * kRefBlock, e = std::min(num_prims, i + kRefBlock); i < e; ++i) {
+      // lo.x lo.y lo.z hi.x and lo.z hi.x hi.y hi.z: both loads inside the box.
+      const float* f = &prim_bounds[i].lo.x;
+      const __m128 l = _mm_loadu_ps(f), h4 = _mm_loadu_ps(f + 2);
+      // Valid: every coordinate finite (x - x is 0 only then) and not empty
+      // (AABB::empty: lo.x > hi.x).
+      const __m128 fin = _mm_and_ps(_mm_cmpeq_ps(_mm_sub_ps(l, l), zero), _mm_cmpeq_ps(_mm_sub_ps(h4, h4), zero));
+      if (_mm_movemask_ps(fin) != 0xF || _mm_comigt_ss(l, _mm_shuffle_ps(l, l, _MM_SHUFFLE(3, 3, 3, 3)))) continue;
+      const __m128 h = xyz(_mm_shuffle_ps(h4, h4, _MM_SHUFFLE(0, 3, 2, 1)));
+      const __m128 lo = _mm_or_ps(xyz(l), _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, int(uint32_t(i)))));
+      *out++ = PrimRef{lo, h};
+      const __m128 c = _mm_add_ps(xyz(l), h);
+      bx.grow(xyz(l), h);
+      cb.grow(c, c);
+    }
+    blk.count = uint32_t(out - start);
+    blk.box = bx, blk.cbox = cb;
   });
   uint32_t total = 0;
   for (RefBlock& blk : blocks) blk.offset = total, total += blk.count;
-  BVH bvh;
   if (total == 0) return bvh;
-  b.refs.reset(new PrimRef[total]);
   b.num_refs = total;
-  for_blocks([&](size_t k) {
-    RefBlock& blk = blocks[k];
-    PrimRef* out = b.refs.get() + blk.offset;
-    for (size_t i = k * kRefBlock, e = std::min(num_prims, i + kRefBlock); i < e; ++i) {
-      if (!valid(i)) continue;
-      const AABB& pb = prim_bounds[i];
-      const uint32_t bits = uint32_t(i);
-      float w;
-      std::memcpy(&w, &bits, 4);
-      const PrimRef r{_mm_setr_ps(pb.lo.x, pb.lo.y, pb.lo.z, w), _mm_setr_ps(pb.hi.x, pb.hi.y, pb.hi.z, 0.0f)};
-      *out++ = r;
-      blk.box.grow(lo_of(r), r.hi);
-      const __m128 c = centroid2(r);
-      blk.cbox.grow(c, c);
+  if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
+  if (total != num_prims) {
+    if (b.scratch) {
+      for_blocks([&](size_t k) {
+        std::memcpy(b.scratch.get() + blocks[k].offset, b.refs.get() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
+      });
+      std::swap(b.refs, b.scratch);
+    } else {
+      for (size_t k = 0; k < nblocks; ++k)  // offsets never pass their block's start: in order, in place
+        std::memmove(b.refs.get() + blocks[k].offset, b.refs.get() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
     }
-  });
+  }
   SSEBox box, cbox;
   for (const RefBlock& blk : blocks) box.grow(blk.box), cbox.grow(blk.cbox);
-  if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
   b.buf[0] = b.refs.get();
   b.buf[1] = b.scratch.get();
   b.nodes.resize(FastBuilder::node_capacity(total));

@@ -4,9 +4,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "core/mesh.h"
@@ -583,5 +585,56 @@ TEST(BVH, BuildSAHSumsEqualTheTreeWalk) {
     const float walked = sah_cost(bvh, costs);
     EXPECT_NEAR(kept, walked, 1e-5f * walked);
     EXPECT_GT(walked, 1.0f);
+  }
+}
+
+// Invalid boxes (empty, NaN, infinite) spread over a range large enough for
+// the parallel partition: the references are made in one pass and moved
+// down past the invalid ones afterwards (through the scratch buffer when the
+// build has one, in place when not). Every valid box is in the tree once,
+// the invalid ones nowhere, and threads do not change the tree.
+TEST(BVH, InvalidBoxesInALargeBuildAreLeftOut) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<AABB> boxes(100000);
+  for (AABB& b : boxes) {
+    const vec3 c(u(rng), u(rng), u(rng));
+    b.grow(c - 0.01f * vec3(std::abs(u(rng)), std::abs(u(rng)), std::abs(u(rng))));
+    b.grow(c + 0.01f * vec3(std::abs(u(rng)), std::abs(u(rng)), std::abs(u(rng))));
+  }
+  std::vector<bool> valid(boxes.size(), true);
+  for (size_t i = 5; i < boxes.size(); i += 997) {
+    switch ((i / 997) % 4) {
+      case 0: boxes[i] = AABB{}; break;                                           // empty
+      case 1: boxes[i].lo.y = std::nanf(""); break;                               // NaN
+      case 2: boxes[i].hi.z = std::numeric_limits<float>::infinity(); break;      // infinite
+      case 3: std::swap(boxes[i].lo.x, boxes[i].hi.x); break;                     // lo.x > hi.x: empty
+    }
+    valid[i] = false;
+  }
+  const size_t num_valid = size_t(std::count(valid.begin(), valid.end(), true));
+  for (bool parallel : {true, false}) {
+    BuildOptions opt;
+    opt.parallel = parallel;
+    BVH one, two;
+    tbb::task_arena(1).execute([&] { one = build_bvh(boxes, opt); });
+    tbb::task_arena(2).execute([&] { two = build_bvh(boxes, opt); });
+    ASSERT_EQ(one.prim_order.size(), num_valid);
+    std::vector<int> seen(boxes.size(), 0);
+    for (uint32_t p : one.prim_order) seen[p]++;
+    for (size_t i = 0; i < boxes.size(); ++i) ASSERT_EQ(seen[i], valid[i] ? 1 : 0) << "box " << i;
+    expect_same_binary_tree(one, two);
+    // Leaves bound their boxes.
+    std::vector<uint32_t> stack{0u};
+    while (!stack.empty()) {
+      const BVHNode& n = one.nodes[stack.back()];
+      stack.pop_back();
+      if (!n.is_leaf()) {
+        stack.push_back(n.first), stack.push_back(n.first + 1);
+        continue;
+      }
+      for (uint32_t k = n.first; k < n.first + n.count; ++k)
+        ASSERT_TRUE(AABB({n.lo, n.hi}).contains(boxes[one.prim_order[k]]));
+    }
   }
 }
