@@ -7,6 +7,7 @@
 
 #include <tbb/parallel_invoke.h>
 #include <tbb/task_group.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <atomic>
@@ -83,14 +84,25 @@ struct Collapser {
     const uint32_t blocks = blocks_for(count);
     if (unit >= (uint32_t(1) << 28)) throw std::length_error("mesh too large for the wide BVH's 28-bit leaf references");
     Tri4* out_blocks = reinterpret_cast<Tri4*>(mem() + size_t(unit) * kBlockUnit);
+    // A triangle's nine floats are contiguous: two 4 x 4 transposes give the
+    // lanes of its first eight, the ninth goes lane by lane.
     for (uint32_t b = 0; b < blocks; ++b) {
       Tri4& t = out_blocks[b];
-      for (int lane = 0; lane < 4; ++lane) {
+      const float* p[4];
+      for (uint32_t lane = 0; lane < 4; ++lane) {
         const uint32_t k = lo + std::min(4 * b + lane, count - 1);
-        const vec3* v = verts + 3 * size_t(k);
-        for (int a = 0; a < 3; ++a) t.v[0][a][lane] = v[0][a], t.v[1][a][lane] = v[1][a], t.v[2][a][lane] = v[2][a];
+        p[lane] = &verts[3 * size_t(k)].x;
         t.prim[lane] = k;
       }
+      __m128 a0 = _mm_loadu_ps(p[0]), a1 = _mm_loadu_ps(p[1]), a2 = _mm_loadu_ps(p[2]), a3 = _mm_loadu_ps(p[3]);
+      __m128 b0 = _mm_loadu_ps(p[0] + 4), b1 = _mm_loadu_ps(p[1] + 4), b2 = _mm_loadu_ps(p[2] + 4),
+             b3 = _mm_loadu_ps(p[3] + 4);
+      _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  // v0.x v0.y v0.z v1.x
+      _MM_TRANSPOSE4_PS(b0, b1, b2, b3);  // v1.y v1.z v2.x v2.y
+      _mm_store_ps(t.v[0][0], a0), _mm_store_ps(t.v[0][1], a1), _mm_store_ps(t.v[0][2], a2);
+      _mm_store_ps(t.v[1][0], a3), _mm_store_ps(t.v[1][1], b0), _mm_store_ps(t.v[1][2], b1);
+      _mm_store_ps(t.v[2][0], b2), _mm_store_ps(t.v[2][1], b3);
+      _mm_store_ps(t.v[2][2], _mm_setr_ps(p[0][8], p[1][8], p[2][8], p[3][8]));
     }
     counts.blocks += blocks;
     return kBVH4LeafBit | (unit << 3) | (blocks - 1);
@@ -114,16 +126,22 @@ struct Collapser {
   // The children of interior node n: its largest-area interior descendants
   // are opened until there are N (or only leaves are left).
   int open_children(const BVHNode& n, uint32_t* kids) const {
+    // Per child: its area if it can be opened (interior), -1 if not (a
+    // leaf), so the search below reads no nodes.
+    auto key = [this](uint32_t i) {
+      const BVHNode& k = bin.nodes[i];
+      return k.is_leaf() ? -1.0f : area(k);
+    };
     kids[0] = n.first, kids[1] = n.first + 1;
-    float areas[N];
-    areas[0] = area(bin.nodes[kids[0]]), areas[1] = area(bin.nodes[kids[1]]);
+    float keys[N];
+    keys[0] = key(kids[0]), keys[1] = key(kids[1]);
     int count = 2;
     while (count < N) {
       int best = -1;
-      float best_area = -1.0f;
+      float best_key = -1.0f;
       for (int c = 0; c < count; ++c) {
-        if (!bin.nodes[kids[c]].is_leaf() && areas[c] > best_area) {
-          best_area = areas[c];
+        if (keys[c] > best_key) {
+          best_key = keys[c];
           best = c;
         }
       }
@@ -131,12 +149,13 @@ struct Collapser {
       const uint32_t split = kids[best];
       kids[best] = bin.nodes[split].first;
       kids[count] = bin.nodes[split].first + 1;
-      areas[best] = area(bin.nodes[kids[best]]);
-      areas[count] = area(bin.nodes[kids[count]]);
+      keys[best] = key(kids[best]);
+      keys[count] = key(kids[count]);
       ++count;
     }
     return count;
   }
+
 
   bool is_leaf_child(uint32_t i) const { return bin.nodes[i].is_leaf() || as_leaf[i]; }
 
