@@ -347,16 +347,15 @@ struct FastBuilder {
     Split best;
     const __m128 cmin = cbox.lo;  // centroid boxes are doubled (centroid2) throughout
     const __m128 ext = _mm_sub_ps(cbox.hi, cmin);
-    alignas(16) float e[4];
-    _mm_store_ps(e, ext);
     const uint32_t n = end - begin;
     // Bins grow with the range (Embree's BinMapping: 4 + n / 20, at most the
     // option's count): the many small ranges near the leaves bin and sweep
     // a handful of bins, the large ones keep the full resolution.
     const int nb = int(std::min<uint32_t>(uint32_t(this->nb), std::min<uint32_t>(n, 4 + n / 20)));
-    alignas(16) float sc[4];
-    for (int a = 0; a < 4; ++a) sc[a] = a < 3 && e[a] > 0.0f ? float(nb) * 0.99999f / e[a] : 0.0f;
-    const __m128 scale = _mm_load_ps(sc);
+    // nb * 0.99999 / extent on the axes with extent, else 0 (one division
+    // for all three; the same values as per axis).
+    const __m128 with_extent = xyz(_mm_cmpgt_ps(ext, _mm_setzero_ps()));
+    const __m128 scale = _mm_and_ps(_mm_div_ps(_mm_set1_ps(float(nb) * 0.99999f), ext), with_extent);
     cmin_out = cmin;
     scale_out = scale;
     nb_out = nb;
