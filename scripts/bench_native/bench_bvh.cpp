@@ -746,10 +746,35 @@ double minor_faults() {
   return double(u.ru_minflt);
 }
 
+// FNV-1a over the wide tree as traversed (nodes reached from the root, their
+// leaf blocks, depth first; the arena's padding is left out) and prim_ids:
+// equal hashes from two builds (or two versions of the builder) mean the
+// traversal sees the same tree.
+template <typename Tree>
+uint64_t tree_hash(const Tree& t, const std::vector<uint32_t>& prim_ids) {
+  uint64_t h = 1469598103934665603ull;
+  auto add = [&](const void* p, size_t n) {
+    for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
+  };
+  std::vector<uint32_t> stack{0u};
+  while (!stack.empty() && !t.empty()) {
+    const auto& node = t.node(stack.back());
+    stack.pop_back();
+    add(&node, sizeof(node));
+    for (uint32_t c = 0; c < node.num_children; ++c) {
+      const uint32_t ref = node.child[c];
+      if (bvh4_is_leaf(ref)) add(t.blocks(ref), bvh4_leaf_blocks(ref) * sizeof(Tri4));
+      else stack.push_back(ref);
+    }
+  }
+  add(prim_ids.data(), prim_ids.size() * sizeof(uint32_t));
+  return h;
+}
+
 void build_only(const Config& cfg) {
   const bool do_t = !cfg.engine_set || cfg.engine != "embree", do_e = !cfg.engine_set || cfg.engine == "embree" || cfg.engine == "both";
-  std::printf("| mesh | threads | Tessera wall ms | Embree wall ms | ratio wall | Tessera CPU ms | Embree CPU ms | ratio CPU | SAH binary | SAH wide | Tessera faults | Embree faults |\n"
-              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("| mesh | threads | Tessera wall ms | Embree wall ms | ratio wall | Tessera CPU ms | Embree CPU ms | ratio CPU | SAH binary | SAH wide | Tessera faults | Embree faults | tree hash |\n"
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (const std::string& path : cfg.meshes) {
     TriangleSoup soup = load_mesh_file(path);
     const std::string name = basename_of(path);
@@ -790,9 +815,11 @@ void build_only(const Config& cfg) {
         return e.empty() || t.empty() ? 0.0 : median(e) / median(t);
       };
       auto med = [](const std::vector<double>& v) { return v.empty() ? 0.0 : median(v); };
-      std::printf("| %s | %d | %.2f | %.2f | %.3f | %.2f | %.2f | %.3f | %.2f | %.2f | %.0f | %.0f |\n", name.c_str(), nt, ms(tw),
-                  ms(ew), ratio(ew, tw), ms(tc), ms(ec), ratio(ec, tc), do_t ? mesh_sah_cost(mesh) : 0.0f,
-                  do_t ? (mesh.width() == 8 ? sah_cost(mesh.bvh8) : sah_cost(mesh.bvh)) : 0.0f, med(tf), med(ef));
+      const uint64_t hash = !do_t ? 0 : mesh.width() == 8 ? tree_hash(mesh.bvh8, mesh.prim_ids) : tree_hash(mesh.bvh, mesh.prim_ids);
+      std::printf("| %s | %d | %.2f | %.2f | %.3f | %.2f | %.2f | %.3f | %.2f | %.2f | %.0f | %.0f | %016llx |\n", name.c_str(), nt,
+                  ms(tw), ms(ew), ratio(ew, tw), ms(tc), ms(ec), ratio(ec, tc), do_t ? mesh_sah_cost(mesh) : 0.0f,
+                  do_t ? (mesh.width() == 8 ? sah_cost(mesh.bvh8) : sah_cost(mesh.bvh)) : 0.0f, med(tf), med(ef),
+                  (unsigned long long)hash);
       std::fflush(stdout);
     }
   }
