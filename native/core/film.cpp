@@ -104,7 +104,8 @@ double Film::sample_variance(size_t i) const {
 // (firefly_threshold x the image's mean pixel value, RGB summed) and over
 // twice the sum of all its other samples, is a rare event that the pixel's
 // mean carries as (brightest - mean of the others) / n of error: counted as
-// that, from every pixel. Such samples are few, land on few pixels and so
+// that, from every pixel (not next to a light seen directly: below, at the
+// lambda). Such samples are few, land on few pixels and so
 // swing one image's error; the replicate grid (1/16 of the pixels or fewer)
 // saw them or missed them by chance (estimate/true 0.24-1.38 on
 // bunny_glass.blend at 16-128 spp with the grid alone, 0.92-1.40 with the
@@ -119,16 +120,21 @@ double Film::sample_variance(size_t i) const {
 // samples (33-38 of 128 over 8 seeds where the reference expects 35.2), or
 // none yet where it expects under one, and its error is that count's last
 // unit or two, about the light's value / n. The grid held one of them, which
-// stood for 16 pixels (estimate/true 0.09-3.69 at 4-128 spp; 0.73-2.81 with
-// this stratum, docs/convergence/ADAPTIVE.md). So the pixels near a bright sample (one
-// over the threshold within one pixel) are a stratum apart: a replicated one
+// stood for 16 pixels (estimate/true 0.09-3.69 at 4-128 spp, 8 seeds;
+// docs/convergence/ADAPTIVE.md). So the pixels near a bright sample (one over
+// the threshold within one pixel) are a stratum apart: a replicated one
 // counts its own replicate pair, the others (new, or over the cap) the mean
 // of the grid's pixels in the stratum, and the remaining pixels the mean of
 // the grid's other pixels. Each estimate gives replicates to the brightest
-// such pixels still without one, up to the grid's count; a replicate added
+// such pixels still without one, up to the grid's count. A replicate added
 // when the pixel had a samples compares the pixel's samples a .. n - 1 with
-// its own, (d^2 / 2) (n - a) / n for the pixel's variance (exact for
-// independent samples; a > 0 and stratified samples: an overestimate).
+// its own: (d^2 / 2) ((n - a) / n)^2, the error those samples put into the
+// pixel's mean, the first a samples' left out. Where the error is a count
+// stratified to within a sample or two whatever n is (a light seen
+// directly), that is the pixel's; for independent samples it is short by
+// n / (n - a) (4/3 at most for a light found in the first 4 of 16 samples).
+// With (n - a) / n (right for independent samples) veach_mis.blend's
+// estimate was 1.3-1.4x its true error at 16-128 spp, on average over seeds.
 //
 // A replicate pair: x1 - x2 over the samples both have, each side's firefly
 // taken out (x1, x2 independent estimates of the pixel's mean: (x1 - x2)^2 / 2
@@ -148,38 +154,51 @@ double Film::estimated_relative_error(double firefly_threshold) {
   if (mean <= 0.0) return 0.0;
   const double threshold = firefly_threshold > 0.0 ? firefly_threshold * mean / double(n_pixels) : kInf;
   auto rgb = [](const vec3& v) { return double(v.x) + v.y + v.z; };
-  // A pixel's firefly: its brightest sample when it is over the threshold and
-  // over twice the sum of all the pixel's other samples.
-  auto firefly = [&](const vec3& sum, const vec3& max, int n) {
-    if (n < 2) return false;
-    const double s = rgb(max);
-    return s > threshold && s > kFireflyDominance * rgb(sum - max);
-  };
   // bright_[i]: pixel i's brightest sample if over the threshold, else 0;
-  // near_bright_[i]: the largest bright_ in i's 3x3 neighbourhood.
+  // near_bright_[i]: the largest bright_ in i's 3x3 neighbourhood; lit_edge_[i]:
+  // a neighbour is lit (a light or other bright surface seen directly).
   const int w = width_, h = int(n_pixels / size_t(std::max(w, 1)));
   bright_.assign(n_pixels, 0.0f);
   near_bright_.assign(n_pixels, 0.0f);
+  lit_edge_.assign(n_pixels, 0);
   for (size_t i = 0; i < n_pixels; ++i)
     if (count_[i] > 0 && rgb(max_[i]) > threshold) bright_[i] = float(rgb(max_[i]));
   if (threshold < kInf)
-    for (size_t i = 0; i < n_pixels; ++i)
-      if (bright_[i] > 0.0f) {  // spread to the 3x3 neighbourhood
-        const int x = int(i % size_t(w)), y = int(i / size_t(w));
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int nx = x + dx, ny = y + dy;
-            if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
-            float& m = near_bright_[size_t(ny) * w + nx];
-            m = std::max(m, bright_[i]);
-          }
-      }
+    for (size_t i = 0; i < n_pixels; ++i) {
+      if (bright_[i] == 0.0f) continue;  // (a bright mean has a bright sample)
+      // Lit: the mean of its samples but the brightest (a firefly of its own
+      // does not make a pixel a light) is over the threshold.
+      const int n = count_[i];
+      const bool lit = n > 1 && rgb(sum_[i] - max_[i]) > threshold * double(n - 1);
+      const int x = int(i % size_t(w)), y = int(i / size_t(w));
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+          const size_t j = size_t(ny) * w + nx;
+          near_bright_[j] = std::max(near_bright_[j], bright_[i]);
+          if (lit && (dx != 0 || dy != 0)) lit_edge_[j] = 1;
+        }
+    }
+  // A pixel's firefly: its brightest sample when it is over the threshold and
+  // over twice the sum of all the pixel's other samples, and no neighbour is
+  // lit. Next to a light seen directly, a pixel that
+  // sees the light in one of its samples has no firefly: its samples see the
+  // light in a well stratified share, and its error is the fraction of a
+  // sample by which that share misses its footprint's, not the sample (the
+  // term was 1.8-2.3x the true error on cbox_mitsuba.blend at 8 spp, where
+  // the light's edge pixels see it in one sample; 1.0-1.4x without them).
+  auto firefly = [&](size_t i, const vec3& sum, const vec3& max, int n) {
+    if (n < 2 || lit_edge_[i]) return false;
+    const double s = rgb(max);
+    return s > threshold && s > kFireflyDominance * rgb(sum - max);
+  };
   double fireflies = 0.0;
   size_t near = 0;
   for (size_t i = 0; i < n_pixels; ++i) {
     near += near_bright_[i] > 0.0f;
     const int n = count_[i];
-    if (n == 0 || !firefly(sum_[i], max_[i], n)) continue;
+    if (n == 0 || !firefly(i, sum_[i], max_[i], n)) continue;
     const vec3 rest = (sum_[i] - max_[i]) / float(n - 1);
     const vec3 d = (max_[i] - rest) / float(n);
     fireflies += rgb(d * d);
@@ -196,10 +215,11 @@ double Film::estimated_relative_error(double firefly_threshold) {
     vec3 x1 = sum_[i] - replicate_start_sum_[slot], x2 = replicate_sum_[slot];
     int m1 = m, m2 = m;
     // Without their fireflies (counted above, from every pixel).
-    if (max_index_[i] >= a && firefly(sum_[i], max_[i], n)) x1 -= max_[i], --m1;
-    if (firefly(x2, replicate_max_[slot], m)) x2 -= replicate_max_[slot], --m2;
+    if (max_index_[i] >= a && firefly(i, sum_[i], max_[i], n)) x1 -= max_[i], --m1;
+    if (firefly(i, x2, replicate_max_[slot], m)) x2 -= replicate_max_[slot], --m2;
     const vec3 d = x1 / float(m1) - x2 / float(m2);
-    const double r = 0.5 * rgb(d * d) * double(m) / double(n);
+    const double share = double(m) / double(n);
+    const double r = 0.5 * rgb(d * d) * share * share;
     const bool is_near = near_bright_[i] > 0.0f;
     if (grid && !is_near) {
       grid_far += r, ++n_grid_far;

@@ -102,8 +102,9 @@ class Film {
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
   // channels) / mean pixel value. Fireflies (a sample over firefly_threshold
   // x the image's mean pixel value and over kFireflyDominance x the sum of
-  // the pixel's other samples) count as the error they put into their
-  // pixel, from every pixel; the rest from the replicates: a replicated pixel
+  // the pixel's other samples, in a pixel with no neighbour whose samples
+  // but the brightest have a mean over the threshold) count as the error they put into their pixel, from
+  // every pixel; the rest from the replicates: a replicated pixel
   // near a bright sample (over the threshold, within one pixel) for itself,
   // the other pixels near one by the grid's, the remaining pixels by the
   // grid's pixels that are not near one (film.cpp). Then, for the passes
@@ -131,6 +132,7 @@ class Film {
   std::vector<vec3> replicate_sum_, replicate_max_, replicate_start_sum_;
   std::vector<int> replicate_pixel_, replicate_start_;
   std::vector<float> bright_, near_bright_;  // scratch for the estimate (film.cpp)
+  std::vector<uint8_t> lit_edge_;
 };
 
 }  // namespace tessera
