@@ -154,21 +154,20 @@ double Film::estimated_relative_error(double firefly_threshold) {
   if (mean <= 0.0) return 0.0;
   const double threshold = firefly_threshold > 0.0 ? firefly_threshold * mean / double(n_pixels) : kInf;
   auto rgb = [](const vec3& v) { return double(v.x) + v.y + v.z; };
-  // bright_[i]: pixel i's brightest sample if over the threshold, else 0;
-  // near_bright_[i]: the largest bright_ in i's 3x3 neighbourhood; lit_edge_[i]:
-  // a neighbour is lit (a light or other bright surface seen directly).
+  // near_bright[i]: the brightest sample over the threshold in i's 3x3
+  // neighbourhood, 0 if none; lit_edge[i]: a neighbour is lit (a light or
+  // other bright surface seen directly). Scratch of 5 bytes a pixel, freed
+  // on return.
   const int w = width_, h = int(n_pixels / size_t(std::max(w, 1)));
-  bright_.assign(n_pixels, 0.0f);
-  near_bright_.assign(n_pixels, 0.0f);
-  lit_edge_.assign(n_pixels, 0);
-  for (size_t i = 0; i < n_pixels; ++i)
-    if (count_[i] > 0 && rgb(max_[i]) > threshold) bright_[i] = float(rgb(max_[i]));
+  std::vector<float> near_bright(n_pixels, 0.0f);
+  std::vector<uint8_t> lit_edge(n_pixels, 0);
   if (threshold < kInf)
     for (size_t i = 0; i < n_pixels; ++i) {
-      if (bright_[i] == 0.0f) continue;  // (a bright mean has a bright sample)
+      const int n = count_[i];
+      const double bright = rgb(max_[i]);
+      if (n == 0 || !(bright > threshold)) continue;  // (a lit pixel has a bright sample)
       // Lit: the mean of its samples but the brightest (a firefly of its own
       // does not make a pixel a light) is over the threshold.
-      const int n = count_[i];
       const bool lit = n > 1 && rgb(sum_[i] - max_[i]) > threshold * double(n - 1);
       const int x = int(i % size_t(w)), y = int(i / size_t(w));
       for (int dy = -1; dy <= 1; ++dy)
@@ -176,8 +175,8 @@ double Film::estimated_relative_error(double firefly_threshold) {
           const int nx = x + dx, ny = y + dy;
           if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
           const size_t j = size_t(ny) * w + nx;
-          near_bright_[j] = std::max(near_bright_[j], bright_[i]);
-          if (lit && (dx != 0 || dy != 0)) lit_edge_[j] = 1;
+          near_bright[j] = std::max(near_bright[j], float(bright));
+          if (lit && (dx != 0 || dy != 0)) lit_edge[j] = 1;
         }
     }
   // A pixel's firefly: its brightest sample when it is over the threshold and
@@ -189,14 +188,14 @@ double Film::estimated_relative_error(double firefly_threshold) {
   // term was 1.8-2.3x the true error on cbox_mitsuba.blend at 8 spp, where
   // the light's edge pixels see it in one sample; 1.0-1.4x without them).
   auto firefly = [&](size_t i, const vec3& sum, const vec3& max, int n) {
-    if (n < 2 || lit_edge_[i]) return false;
+    if (n < 2 || lit_edge[i]) return false;
     const double s = rgb(max);
     return s > threshold && s > kFireflyDominance * rgb(sum - max);
   };
   double fireflies = 0.0;
   size_t near = 0;
   for (size_t i = 0; i < n_pixels; ++i) {
-    near += near_bright_[i] > 0.0f;
+    near += near_bright[i] > 0.0f;
     const int n = count_[i];
     if (n == 0 || !firefly(i, sum_[i], max_[i], n)) continue;
     const vec3 rest = (sum_[i] - max_[i]) / float(n - 1);
@@ -220,7 +219,7 @@ double Film::estimated_relative_error(double firefly_threshold) {
     const vec3 d = x1 / float(m1) - x2 / float(m2);
     const double share = double(m) / double(n);
     const double r = 0.5 * rgb(d * d) * share * share;
-    const bool is_near = near_bright_[i] > 0.0f;
+    const bool is_near = near_bright[i] > 0.0f;
     if (grid && !is_near) {
       grid_far += r, ++n_grid_far;
       continue;
@@ -248,8 +247,8 @@ double Film::estimated_relative_error(double firefly_threshold) {
   if (room > 0 && threshold < kInf) {
     std::vector<std::pair<float, int>> wanted;
     for (size_t i = 0; i < n_pixels; ++i)
-      if (near_bright_[i] > 0.0f && slot_of_[i] < 0 && active_[i] && count_[i] > 0)
-        wanted.emplace_back(near_bright_[i], int(i));
+      if (near_bright[i] > 0.0f && slot_of_[i] < 0 && active_[i] && count_[i] > 0)
+        wanted.emplace_back(near_bright[i], int(i));
     if (wanted.size() > room) {
       std::nth_element(wanted.begin(), wanted.begin() + room, wanted.end(),
                        [](const auto& p, const auto& q) { return p.first > q.first || (p.first == q.first && p.second < q.second); });

@@ -131,8 +131,6 @@ class Film {
   // grid) and the pixel's sum then.
   std::vector<vec3> replicate_sum_, replicate_max_, replicate_start_sum_;
   std::vector<int> replicate_pixel_, replicate_start_;
-  std::vector<float> bright_, near_bright_;  // scratch for the estimate (film.cpp)
-  std::vector<uint8_t> lit_edge_;
 };
 
 }  // namespace tessera
