@@ -45,8 +45,9 @@ struct RenderOptions {
   float error_target = 0.0f;
   // Estimate the image's error (needed by error_target, shown in the stats):
   // a sparse grid of pixels also renders an independent replicate of its
-  // samples (film.h): at least 256 pixels, 1/16 of them (6% more samples)
-  // at 120 pixels wide, 1/256 at 1080p, all of an image under 1024 pixels.
+  // samples (film.h): at least 256 pixels, 1/16 of them at 120 pixels wide,
+  // 1/256 at 1080p, all of an image under 1024 pixels; as many again at most
+  // for the brightest pixels off the grid (6-12% more samples at 120 px).
   bool estimate_error = true;
   // Render passes besides Combined to write (passes.h, PassBits); 0: none,
   // and the integrator records nothing for them.
