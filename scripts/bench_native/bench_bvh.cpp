@@ -381,6 +381,14 @@ std::string fmt_mb(size_t bytes) {
   return b;
 }
 
+// Minor page faults of the process so far (first touches of fresh memory; a
+// load-independent figure, unlike the times).
+double minor_faults() {
+  rusage u;
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_minflt);
+}
+
 void compare(const Config& cfg) {
   std::printf("## Tessera vs Embree\n\n");
   std::printf("Build: median wall time of %d builds (Tessera: `build_mesh`, default options; Embree: scene + geometry "
@@ -416,17 +424,23 @@ void compare(const Config& cfg) {
       devices.push_back(dev);
       tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
       tbb::task_arena arena(nt);
-      std::vector<double> tt, te;
+      std::vector<double> tt, te, tf, ef;
       arena.execute([&] {
         for (int r = 0; r < cfg.runs; ++r) {
+          double f0 = minor_faults();
           auto t0 = Clock::now();
           mesh = tessera_build(soup, [] { BuildOptions o; if (getenv("ML")) o.max_leaf_size = atoi(getenv("ML")); return o; }());
           tt.push_back(seconds_since(t0));
+          tf.push_back(minor_faults() - f0);
+          f0 = minor_faults();
           t0 = Clock::now();
           embree_build(dev, soup, escenes[ti]);
           te.push_back(seconds_since(t0));
+          ef.push_back(minor_faults() - f0);
         }
       });
+      std::fprintf(stderr, "%s %d threads: page faults per build (median) Tessera %.0f, Embree %.0f\n", name.c_str(), nt,
+                   median(tf), median(ef));
       // Embree's bytes for this one scene: all scenes released, then the last build.
       escenes[ti].release();
       const long long before = g_embree_bytes.load();
@@ -738,13 +752,6 @@ double process_seconds() {
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
-// Minor page faults of the process so far (first touches of fresh memory; a
-// load-independent figure, unlike the times).
-double minor_faults() {
-  rusage u;
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_minflt);
-}
 
 // FNV-1a over the wide tree as traversed (nodes reached from the root, their
 // leaf blocks, depth first; the arena's padding is left out) and prim_ids:
@@ -789,7 +796,7 @@ void build_only(const Config& cfg) {
       arena.execute([&] {
         for (int r = 0; r < cfg.runs; ++r) {
           if (do_t) {
-            mesh = Mesh{};
+            mesh = Mesh{};  // the old mesh's release is not timed
             const double f0 = minor_faults(), c0 = process_seconds();
             auto t0 = Clock::now();
             mesh = tessera_build(soup, BuildOptions{});
