@@ -125,25 +125,9 @@ for path in args.scenes:
                          seconds=wall, render_seconds=st.get("render_seconds", ""),
                          est_error=st.get("estimated_error", "")))
 
-    def measured(eng, ladder, samples, bounces, img, wall, st, **extra):
-        own = metrics(img, refs[eng])
-        other = metrics(img, refs.get("CYCLES" if eng == "TESSERA" else "TESSERA", refs[eng]))
-        row = dict(scene=name, engine=eng, ladder=ladder, samples=samples, bounces=bounces, seconds=wall,
-                   render_seconds=st.get("render_seconds", ""),
-                   mean_samples=st.get("mean_samples", samples), rays=st.get("rays", ""),
-                   rmse_own=own["rmse"], relmse_own=own["relmse"], rmse_other=other["rmse"],
-                   relmse_other=other["relmse"], efficiency_own=1.0 / (own["rmse"] ** 2 * wall),
-                   true_rel_error=own["true_rel_error"], est_error=st.get("estimated_error", ""),
-                   est_over_true=(st["estimated_error"] / own["true_rel_error"]) if "estimated_error" in st else "")
-        row.update(extra)
-        rows.append(row)
-        print(f"  {ladder} {eng} spp={samples} bounces={bounces}: {wall:.2f} s, rmse own {own['rmse']:.5f} "
-              f"other {other['rmse']:.5f}" + (f", est/true {row['est_over_true']:.2f}" if row["est_over_true"] != "" else ""),
-              flush=True)
-        return row
-
-    def measured_runs(eng, spp, runs):
-        """One ladder point from several seeds: median time, mean MSE."""
+    def measured(eng, ladder, samples, bounces, runs, **extra):
+        """One point from one or more renders [(img, wall, stats)] of different seeds: median time, RMSE from
+        the mean MSE (the expected error), the estimate as mean estimate / RMS true error."""
         own_mse, other_mse, own_rel, walls, est, true_rel = [], [], [], [], [], []
         for img, wall, st in runs:
             own, other = metrics(img, refs[eng]), metrics(img, refs.get("CYCLES" if eng == "TESSERA" else "TESSERA", refs[eng]))
@@ -153,22 +137,21 @@ for path in args.scenes:
                 est.append(st["estimated_error"])
         wall = float(np.median(walls))
         rmse = math.sqrt(float(np.mean(own_mse)))
+        true_rms = math.sqrt(float(np.mean(np.square(true_rel))))
         st = runs[-1][2]
-        row = dict(scene=name, engine=eng, ladder="samples", samples=spp, bounces=args.bounces, seconds=wall,
+        row = dict(scene=name, engine=eng, ladder=ladder, samples=samples, bounces=bounces, seconds=wall,
                    render_seconds=st.get("render_seconds", ""), runs=len(runs),
                    seconds_min=min(walls), seconds_max=max(walls),
-                   mean_samples=st.get("mean_samples", spp), rays=st.get("rays", ""),
+                   mean_samples=st.get("mean_samples", samples), rays=st.get("rays", ""),
                    rmse_own=rmse, relmse_own=float(np.mean(own_rel)), rmse_other=math.sqrt(float(np.mean(other_mse))),
-                   efficiency_own=1.0 / (rmse ** 2 * wall),
-                   true_rel_error=math.sqrt(float(np.mean(np.square(true_rel)))),
+                   efficiency_own=1.0 / (rmse ** 2 * wall), true_rel_error=true_rms,
                    est_error=float(np.mean(est)) if est else "",
-                   # The estimate predicts the expected error: mean estimate over RMS true error,
-                   # and the per-seed ratios' range.
-                   est_over_true=(float(np.mean(est)) / math.sqrt(float(np.mean(np.square(true_rel))))) if est else "",
+                   est_over_true=float(np.mean(est)) / true_rms if est else "",
                    est_over_true_min=min(e / t for e, t in zip(est, true_rel)) if est else "",
                    est_over_true_max=max(e / t for e, t in zip(est, true_rel)) if est else "")
+        row.update(extra)
         rows.append(row)
-        print(f"  samples {eng} spp={spp} x{len(runs)}: {wall:.2f} s (median), rmse own {rmse:.5f} "
+        print(f"  {ladder} {eng} spp={samples} bounces={bounces} x{len(runs)}: {wall:.2f} s (median), rmse own {rmse:.5f} "
               f"other {row['rmse_other']:.5f}" + (f", est/true {row['est_over_true']:.2f}" if est else ""), flush=True)
         return row
 
@@ -179,12 +162,11 @@ for path in args.scenes:
             for eng in ENGINES if seed % 2 == 0 else ENGINES[::-1]:  # alternate so machine load hits both alike
                 runs[eng].append(run(path, eng, spp, args.bounces, seed=seed))
         for eng in ENGINES:
-            ladder_rows[eng].append(measured_runs(eng, spp, runs[eng]))
+            ladder_rows[eng].append(measured(eng, "samples", spp, args.bounces, runs[eng]))
     bounce_rows = {e: [] for e in ENGINES}
     for b in ([] if args.adaptive_only else args.bounce_ladder):
         for eng in ENGINES:
-            img, wall, st = run(path, eng, args.bounce_samples, b)
-            bounce_rows[eng].append(measured(eng, "bounces", args.bounce_samples, b, img, wall, st))
+            bounce_rows[eng].append(measured(eng, "bounces", args.bounce_samples, b, [run(path, eng, args.bounce_samples, b)]))
 
     # Efficiency ratio at Cycles' 64-sample error (own references).
     ratio = None
@@ -219,14 +201,14 @@ for path in args.scenes:
                 for label, thr in order:
                     img, wall, st = run(path, "TESSERA", 1_000_000, args.bounces, seed=seed, time_limit=budget,
                                         adaptive_threshold=thr, adaptive_min_samples=args.adaptive_min_samples)
-                    runs[label].append(measured("TESSERA", label, 1_000_000, args.bounces, img, wall, st,
+                    runs[label].append(measured("TESSERA", label, 1_000_000, args.bounces, [(img, wall, st)],
                                                 time_limit=budget, seed=seed))
                     if thr > 0 and args.adaptive_equal_samples:
                         # Uniform at the adaptive run's mean samples per pixel (same seed).
                         spp = max(1, round(st["mean_samples"]))
                         img_u, wall_u, st_u = run(path, "TESSERA", spp, args.bounces, seed=seed)
-                        u = measured("TESSERA", f"uniform at {label}'s samples", spp, args.bounces, img_u, wall_u, st_u,
-                                     seed=seed)
+                        u = measured("TESSERA", f"uniform at {label}'s samples", spp, args.bounces,
+                                     [(img_u, wall_u, st_u)], seed=seed)
                         equal[label].append((runs[label][-1]["rmse_own"], u["rmse_own"],
                                              st["mean_samples"], st_u["mean_samples"], st["rays"], st_u["rays"]))
             res = {}
