@@ -60,11 +60,11 @@ void Film::resize(int width, int height, bool estimate_error) {
          size_t((width + 2 * stride_ - 1) / (2 * stride_)) * ((height + 2 * stride_ - 1) / (2 * stride_)) >=
              size_t(kMinReplicatePixels))
     stride_ *= 2;
-  replicate_columns_ = (width + stride_ - 1) / stride_;
+  const int replicate_columns = (width + stride_ - 1) / stride_;
   slot_of_.assign(estimate_error ? n : 0, -1);
   replicate_sum_.clear(), replicate_max_.clear(), replicate_start_sum_.clear();
   replicate_pixel_.clear(), replicate_start_.clear();
-  grid_slots_ = estimate_error ? size_t(replicate_columns_) * ((height + stride_ - 1) / stride_) : 0;
+  grid_slots_ = estimate_error ? size_t(replicate_columns) * ((height + stride_ - 1) / stride_) : 0;
   // Room for the grid and as many followed pixels, so that adding a slot
   // never moves the buffers.
   for (auto* v : {&replicate_sum_, &replicate_max_, &replicate_start_sum_}) v->reserve(2 * grid_slots_);

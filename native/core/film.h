@@ -116,7 +116,7 @@ class Film {
   double estimated_relative_error(double firefly_threshold = kFireflyThreshold);
 
  private:
-  int width_ = 0, stride_ = 1, replicate_columns_ = 0;
+  int width_ = 0, stride_ = 1;
   std::vector<vec3> sum_, sum_a_;
   std::vector<double> sum_sq_;  // per pixel: sum over samples of |L|^2 (RGB)
   std::vector<int> count_;

@@ -19,12 +19,35 @@ size_t Mesh::memory_bytes() const {
 }
 
 namespace {
-// The wide BLAS (BVH8 on AVX2 CPUs, else BVH4) collapsed from `binary`
-// over mesh.tri_verts in its leaf order.
-void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& opt, const BuildOptions& options) {
-  const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
-  const int width = options.bvh_width == 4 ? 4 : options.bvh_width == 8 ? (avx2 ? 8 : 4) : (avx2 ? 8 : 4);
-  if (width == 8) {
+// What a mesh's tree is built with: Tri4 leaves.
+BuildOptions tri4_leaf_options(const BuildOptions& options) {
+  BuildOptions opt = options;
+  if (opt.sah_block_size <= 0) opt.sah_block_size = 4;
+  opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
+  return opt;
+}
+
+// Input triangle i: kept, skipped (an index out of range or a non-finite
+// corner) or degenerate (two equal corners). Triangles with two equal
+// corners (common in real meshes: 2,429 of modern_hall's 31,247) cannot be
+// hit (one edge function is 0, the other two exact opposites), but each one
+// sent its whole Tri4 block down the exact-zero path for every ray that
+// reached it: they are left out too, and counted apart.
+enum class TriangleCheck { Kept, Skipped, Degenerate };
+TriangleCheck check_triangle(const MeshInput& in, size_t i) {
+  const uint32_t* idx = in.indices + 3 * i;
+  if (!(idx[0] < in.num_vertices && idx[1] < in.num_vertices && idx[2] < in.num_vertices)) return TriangleCheck::Skipped;
+  const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
+  const vec3 &a = pos[idx[0]], &b = pos[idx[1]], &c = pos[idx[2]];
+  if (!is_finite(a) || !is_finite(b) || !is_finite(c)) return TriangleCheck::Skipped;
+  return a == b || b == c || c == a ? TriangleCheck::Degenerate : TriangleCheck::Kept;
+}
+
+// The wide BLAS (BVH8 on AVX2 CPUs unless options ask for 4, else BVH4)
+// collapsed from `binary` over mesh.tri_verts in its leaf order.
+void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& options) {
+  const BuildOptions opt = tri4_leaf_options(options);
+  if (options.bvh_width != 4 && cpu_simd_level() == SimdLevel::AVX2) {
     mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data(), opt);
     mesh.bvh8.sah_cost = sah_cost(binary, options);
   } else {
@@ -61,36 +84,20 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   } boxes(nt);
   static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
-  // Triangles with two equal corners (common in real meshes: 2,429 of
-  // modern_hall's 31,247) cannot be hit (one edge function is 0, the other
-  // two exact opposites), but each one sent its whole Tri4 block down the
-  // exact-zero path for every ray that reached it: they are left out too.
   std::atomic<size_t> degenerate{0};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
     size_t block_degenerate = 0;
     for (size_t i = r.begin(); i < r.end(); ++i) {
-      const uint32_t* idx = in.indices + 3 * i;
       AABB box;
-      const bool in_range = idx[0] < in.num_vertices && idx[1] < in.num_vertices && idx[2] < in.num_vertices;
-      for (int k = 0; k < 3 && in_range; ++k) {
-        if (!is_finite(pos[idx[k]])) {
-          box = AABB{};
-          break;
-        }
-        box.grow(pos[idx[k]]);
-      }
-      if (!box.empty()) {
-        const vec3 &a = pos[idx[0]], &b = pos[idx[1]], &c = pos[idx[2]];
-        if (a == b || b == c || c == a) box = AABB{}, ++block_degenerate;
-      }
+      const TriangleCheck check = check_triangle(in, i);
+      if (check == TriangleCheck::Kept)
+        for (int k = 0; k < 3; ++k) box.grow(pos[in.indices[3 * i + k]]);
+      block_degenerate += check == TriangleCheck::Degenerate;
       new (&boxes.p[i]) AABB(box);
     }
     degenerate += block_degenerate;
   });
-  BuildOptions opt = options;
-  if (opt.sah_block_size <= 0) opt.sah_block_size = 4;  // Tri4 leaves
-  opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
-  BVH binary = build_bvh(boxes.p, nt, opt);
+  BVH binary = build_bvh(boxes.p, nt, tri4_leaf_options(options));
   const size_t kept = binary.prim_order.size();
   mesh.num_degenerate_triangles = degenerate.load();
   mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
@@ -102,7 +109,7 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
       for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
     }
   });
-  attach_tree(mesh, binary, opt, options);
+  attach_tree(mesh, binary, options);
   copy_attributes(mesh, in);
   return mesh;
 }
@@ -112,22 +119,14 @@ Mesh prepare_mesh(const MeshInput& in) {
   const size_t nt = in.num_triangles;
   mesh.num_input_triangles = nt;
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
-  // The same tests as build_mesh: indices in range, finite corners, no two
-  // corners equal (those are counted apart).
   std::vector<uint8_t> keep(nt, 0);
   std::atomic<size_t> degenerate{0};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
     size_t block_degenerate = 0;
     for (size_t i = r.begin(); i < r.end(); ++i) {
-      const uint32_t* idx = in.indices + 3 * i;
-      if (!(idx[0] < in.num_vertices && idx[1] < in.num_vertices && idx[2] < in.num_vertices)) continue;
-      const vec3 &a = pos[idx[0]], &b = pos[idx[1]], &c = pos[idx[2]];
-      if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
-      if (a == b || b == c || c == a) {
-        ++block_degenerate;
-        continue;
-      }
-      keep[i] = 1;
+      const TriangleCheck check = check_triangle(in, i);
+      keep[i] = check == TriangleCheck::Kept;
+      block_degenerate += check == TriangleCheck::Degenerate;
     }
     degenerate += block_degenerate;
   });
@@ -155,10 +154,7 @@ void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
     for (size_t i = r.begin(); i < r.end(); ++i)
       for (int k = 0; k < 3; ++k) boxes[i].grow(mesh.tri_verts[3 * i + k]);
   });
-  BuildOptions opt = options;
-  if (opt.sah_block_size <= 0) opt.sah_block_size = 4;  // Tri4 leaves
-  opt.max_leaf_size = std::clamp(opt.max_leaf_size, 1, int(4 * kBVH4MaxLeafBlocks));
-  BVH binary = build_bvh(boxes.data(), n, opt);
+  BVH binary = build_bvh(boxes.data(), n, tri4_leaf_options(options));
   // Leaf order: binary.prim_order indexes the prepared order.
   std::vector<vec3> verts(3 * binary.prim_order.size());
   std::vector<uint32_t> ids(binary.prim_order.size());
@@ -169,7 +165,7 @@ void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
   }
   mesh.tri_verts.swap(verts);
   mesh.prim_ids.swap(ids);
-  attach_tree(mesh, binary, opt, options);
+  attach_tree(mesh, binary, options);
 }
 
 bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit, TraversalOrder order) {
