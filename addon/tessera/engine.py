@@ -69,6 +69,7 @@ PASSES = (
     ("Denoising Normal", "Denoising Normal", "XYZ", 'VECTOR', lambda vl: _denoising_data(vl)),
     ("Denoising Albedo", "Denoising Albedo", "RGB", 'COLOR', lambda vl: _denoising_data(vl)),
     ("Denoising Depth", "Denoising Depth", "Z", 'VALUE', lambda vl: _denoising_data(vl)),
+    ("Debug Sample Count", "Debug Sample Count", "X", 'VALUE', lambda vl: _sample_count(vl)),
 )
 # Blender's pass name -> the core's.
 CORE_PASS = {blender: core_name for core_name, blender, _, _, _ in PASSES}
@@ -77,6 +78,11 @@ CORE_PASS = {blender: core_name for core_name, blender, _, _, _ in PASSES}
 def _denoising_data(view_layer):
     settings = getattr(view_layer, "tessera", None)
     return bool(settings is not None and settings.denoising_store_passes)
+
+
+def _sample_count(view_layer):
+    settings = getattr(view_layer, "tessera", None)
+    return bool(settings is not None and settings.pass_debug_sample_count)
 
 
 def enabled_passes(view_layer):

@@ -119,6 +119,10 @@ class TesseraViewLayerSettings(bpy.types.PropertyGroup):
         name="Denoising Data", description="Write the Denoising Normal, Albedo and Depth passes (as Cycles "
         "does), for denoising in the compositor",
         default=False, update=_update_render_passes)
+    pass_debug_sample_count: BoolProperty(
+        name="Sample Count", description="Write the Debug Sample Count pass: the samples each pixel took over "
+        "the Samples setting (as Cycles), to see where adaptive sampling and the time limit put the work",
+        default=False, update=_update_render_passes)
 
 
 class TESSERA_OT_apply_preset(bpy.types.Operator):

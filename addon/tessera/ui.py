@@ -106,6 +106,8 @@ class TESSERA_PT_passes_data(bpy.types.Panel):
         col.prop(view_layer, "use_pass_diffuse_color", text="Diffuse Color")
         col.prop(view_layer, "use_pass_emit", text="Emission")
         col.prop(view_layer.tessera, "denoising_store_passes")
+        col = layout.column(heading="Debug", align=True)
+        col.prop(view_layer.tessera, "pass_debug_sample_count")
 
 
 class TesseraLightPanel(TesseraPanel):

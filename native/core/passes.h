@@ -24,6 +24,13 @@ enum PassBits : uint32_t {
 };
 constexpr int kNumDataPasses = 7;
 constexpr uint32_t kPassAllData = (1u << kNumDataPasses) - 1;
+// "Debug Sample Count": the samples each pixel took over the Samples setting
+// (Cycles' PASS_SAMPLE_COUNT, film_get_pass_pixel_sample_count: the count
+// scaled by 1 / num_samples), where adaptive sampling and the time limit put
+// the work. Read off the film's counts between passes; the integrator
+// records nothing for it.
+constexpr uint32_t kPassSampleCount = 1u << kNumDataPasses;
+constexpr uint32_t kPassAll = kPassAllData | kPassSampleCount;
 
 // Blender's name of each pass (the render result's pass names, as Cycles registers them).
 inline const char* pass_name(uint32_t pass) {
@@ -35,13 +42,14 @@ inline const char* pass_name(uint32_t pass) {
     case kPassDenoisingNormal: return "Denoising Normal";
     case kPassDenoisingAlbedo: return "Denoising Albedo";
     case kPassDenoisingDepth: return "Denoising Depth";
+    case kPassSampleCount: return "Debug Sample Count";
     default: return "";
   }
 }
 
 // Number of float channels of one pass (1 or 3).
 inline int pass_channels(uint32_t pass) {
-  return (pass == kPassDepth || pass == kPassDenoisingDepth) ? 1 : 3;
+  return (pass == kPassDepth || pass == kPassDenoisingDepth || pass == kPassSampleCount) ? 1 : 3;
 }
 
 // Albedos of a material's closures as Cycles sums them for its passes

@@ -30,6 +30,7 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   data_passes_.configure(options.passes, film_.size(), scene.camera);
   for (int b = 0; b < kNumDataPasses; ++b)
     if (data_passes_.mask() & (1u << b)) pass_display_[b].assign(film_.size() * pass_channels(1u << b), 0.0f);
+  if (options.passes & kPassSampleCount) sample_count_display_.assign(film_.size(), 0.0f);
 }
 
 void RenderSession::render_tile(int tile, PathCounters& counters) {
@@ -330,6 +331,10 @@ void RenderSession::render() {
         const int nc = pass_channels(bit);
         for (size_t i = 0; i < num_pixels; ++i) data_passes_.resolve(i, film_.count(i), bit, &pass_display_[b][nc * i]);
       }
+      if (!sample_count_display_.empty()) {
+        const float scale = 1.0f / float(std::max(1, total));
+        for (size_t i = 0; i < num_pixels; ++i) sample_count_display_[i] = float(film_.count(i)) * scale;
+      }
     }
     PathCounters all;
     for (const PathCounters& c : counters) all.rays += c.rays;
@@ -378,6 +383,10 @@ std::vector<float> RenderSession::pixels() const {
 }
 
 std::vector<float> RenderSession::pass_pixels(uint32_t pass) const {
+  if (pass == kPassSampleCount) {
+    std::lock_guard<std::mutex> lock(display_mutex_);
+    return sample_count_display_;
+  }
   for (int b = 0; b < kNumDataPasses; ++b)
     if (pass == (1u << b)) {
       std::lock_guard<std::mutex> lock(display_mutex_);

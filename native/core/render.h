@@ -101,6 +101,7 @@ class RenderSession {
   mutable std::mutex display_mutex_;
   std::vector<float> display_;  // RGBA means after the last pass
   std::vector<float> pass_display_[kNumDataPasses];  // per PassBits bit: the enabled passes after the last pass
+  std::vector<float> sample_count_display_;          // Debug Sample Count after the last pass, if enabled
   std::atomic<bool> cancel_{false};
   std::atomic<int> samples_done_{0};
   std::atomic<double> estimated_error_{0.0};

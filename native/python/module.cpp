@@ -138,8 +138,7 @@ class PySession {
   }
   // One enabled data pass by its Blender name: (height, width, channels).
   py::array_t<float> pass_pixels(const std::string& name) const {
-    for (int b = 0; b < kNumDataPasses; ++b) {
-      const uint32_t bit = 1u << b;
+    for (uint32_t bit = 1; bit & kPassAll; bit <<= 1) {
       if (name != pass_name(bit)) continue;
       std::vector<float> p = session_.pass_pixels(bit);
       if (p.empty())
@@ -180,7 +179,7 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "Tessera's native core: scene building, BVH and path tracing";
   {
     py::dict passes;  // Blender pass name -> RenderOptions.passes bit
-    for (int b = 0; b < kNumDataPasses; ++b) passes[pass_name(1u << b)] = 1u << b;
+    for (uint32_t bit = 1; bit & kPassAll; bit <<= 1) passes[pass_name(bit)] = bit;
     m.attr("PASSES") = passes;
   }
 

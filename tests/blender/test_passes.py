@@ -121,6 +121,28 @@ def test_combined_is_the_same_with_passes_on():
     assert np.abs(off - on).max() <= 1e-6 * max(1.0, float(np.abs(off).max()))
 
 
+def test_sample_count_pass_shows_where_adaptive_sampling_stopped():
+    """View Layer > Passes > Data > Debug > Sample Count: declared only when on,
+    each pixel's samples over the Samples setting (as Cycles' Debug Sample
+    Count), below 1 where adaptive sampling stopped a pixel early."""
+    scene = passes_scene(32)
+    enable_passes(scene, False)
+    assert "Debug Sample Count" not in render_passes(scene, 'TESSERA', samples=2)
+    scene.view_layers[0].tessera.pass_debug_sample_count = True
+    uniform = render_passes(scene, 'TESSERA', samples=8)
+    assert sorted(uniform) == ["Combined", "Debug Sample Count"]
+    assert uniform["Debug Sample Count"].shape[-1] == 1
+    assert np.all(uniform["Debug Sample Count"] == 1.0)  # every pixel took all 8
+    scene.tessera.adaptive_threshold = 0.05
+    scene.tessera.adaptive_min_samples = 8
+    samples = 256
+    counts = render_passes(scene, 'TESSERA', samples=samples)["Debug Sample Count"][..., 0] * samples
+    print(f"Debug Sample Count x {samples}: {counts.min():.0f} .. {counts.max():.0f}")
+    assert np.allclose(counts, np.round(counts), atol=1e-3)  # whole samples
+    assert counts.min() >= 8 and counts.max() <= samples
+    assert counts.min() < counts.max()  # the smooth floor stopped before the noisy pixels
+
+
 def _report(name, ours, ref, mask):
     o, r = ours[name][mask], ref[name][mask]
     print(f"{name}: interior pixels {mask.sum()}, mean ours {o.mean(axis=0)}, Cycles {r.mean(axis=0)}, "

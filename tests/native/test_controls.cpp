@@ -230,6 +230,35 @@ TEST(Controls, AdaptiveWithAnErrorTargetGivesNoisyPixelsMoreSamplesAndIsDetermin
   EXPECT_GT(hi, 2 * lo);  // not uniform: the noisy pixels got more
 }
 
+// The Debug Sample Count pass is each pixel's samples over the Samples
+// setting (Cycles' scaling), and turning it on changes nothing else: the
+// integrator records nothing for it.
+TEST(Controls, SampleCountPassIsEachPixelsSamplesOverTheSetting) {
+  Scene s;
+  fixtures::build_cornell_box(s, 32, 24);
+  RenderOptions opt;
+  opt.samples = 4096;
+  opt.adaptive_threshold = 1e-4f;  // no pixel converges: the error target's budget goes to the noisy ones
+  opt.error_target = 0.05f;
+  opt.adaptive_min_samples = 16;
+  RenderSession plain(s, opt);
+  plain.render();
+  opt.passes = kPassSampleCount;
+  RenderSession counted(s, opt);
+  counted.render();
+  const std::vector<int> counts = counted.sample_counts();
+  const std::vector<float> pass = counted.pass_pixels(kPassSampleCount);
+  ASSERT_EQ(counts.size(), pass.size());
+  for (size_t i = 0; i < counts.size(); ++i) EXPECT_FLOAT_EQ(float(counts[i]) / opt.samples, pass[i]) << "pixel " << i;
+  const auto [lo, hi] = std::minmax_element(pass.begin(), pass.end());
+  std::printf("sample count pass: %.3f .. %.3f\n", *lo, *hi);
+  EXPECT_LT(*lo, *hi);  // adaptive sampling shows in it
+  EXPECT_EQ(counts, plain.sample_counts());
+  const std::vector<float> a = plain.pixels(), b = counted.pixels();
+  EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.size() * sizeof(float)));
+  EXPECT_TRUE(plain.pass_pixels(kPassSampleCount).empty());  // not written unless asked for
+}
+
 // At equal total samples the error-driven allocation has a lower RMSE than
 // uniform sampling on the box (deterministic seeds, no timing).
 TEST(Controls, AdaptiveByErrorBeatsUniformAtEqualSamples) {
