@@ -203,6 +203,10 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
   uint32_t ref = 0;
   bool found = false;
   float t_best = tmax;
+  // Popped entries are skipped against t_best widened as the node test's far
+  // planes (widen_far), so that a child is dropped only where the node test
+  // with the current t_best would drop it.
+  float t_cull = widen_far(tmax);
   const __m512i lane_ids = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
@@ -267,6 +271,7 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
       }
     } else if (leaf_intersect(base, ref, ray, t_best, hit)) {
       found = true;
+      t_cull = widen_far(t_best);
     }
     // Pop, skipping entries farther than the nearest hit so far.
     for (;;) {
@@ -275,7 +280,7 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
         return found;
       }
       --sp;
-      if (stack[sp].t <= t_best) break;
+      if (stack[sp].t <= t_cull) break;
     }
     ref = stack[sp].ref;
   }

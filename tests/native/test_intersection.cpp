@@ -484,3 +484,59 @@ TEST(Intersection, BranchFreeShearMatchesMaxDimension) {
         ASSERT_EQ(s.sz, 1.0f / d[kz]);
       }
 }
+
+// Closest hit must not depend on the order triangles are tested in. Two
+// coplanar triangles of modern_hall (overlapping: the same wall twice) and a
+// ray that hits both at distances one ulp apart: the range test on
+// t_scaled against tmax * det used to reject the nearer one (its rounded t
+// below tmax) once the farther one had set tmax, so BVH4 and BVH8 (different
+// visiting orders) returned different hits.
+TEST(Triangle, ClosestHitIndependentOfTestOrder) {
+  const vec3 A[3] = {vec3(-10.2392635f, 0.59454298f, 2.59882995e-08f), vec3(-14.1093121f, 0.59454298f, 2.59882995e-08f),
+                     vec3(-14.1093121f, -0.0890169963f, -3.89105637e-09f)};
+  const vec3 B[3] = {vec3(-13.7577667f, -0.0860169977f, -3.7599226e-09f), vec3(-14.1093121f, -0.0860169977f, -3.7599226e-09f),
+                     vec3(-14.1093121f, 0.59454298f, 2.59882995e-08f)};
+  const vec3 o(-12.3104649f, 1.637887f, -1.37166548f), d(-0.678468108f, -0.509929895f, 0.528821826f);
+  const RayShear sh(d);
+  TriangleHit ha, hb;
+  ASSERT_TRUE(intersect_triangle(A[0], A[1], A[2], o, sh, kInf, ha));
+  ASSERT_TRUE(intersect_triangle(B[0], B[1], B[2], o, sh, kInf, hb));
+  ASSERT_NE(ha.t, hb.t);
+  const float t_min = std::min(ha.t, hb.t);
+  // Tested with tmax = the other's distance, the nearer one still hits.
+  TriangleHit h;
+  if (ha.t < hb.t) EXPECT_TRUE(intersect_triangle(A[0], A[1], A[2], o, sh, hb.t, h));
+  else EXPECT_TRUE(intersect_triangle(B[0], B[1], B[2], o, sh, ha.t, h));
+  // Each triangle its own leaf, both input orders, every traversal kernel.
+  std::vector<std::pair<int, bool>> widths{{4, false}};
+  if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back({8, false});
+  if (cpu_has_avx512()) widths.push_back({8, true});
+  const bool saved_kernel = g_bvh8_avx512;
+  for (int order = 0; order < 2; ++order) {
+    std::vector<float> pos;
+    for (const vec3* t : {order ? B : A, order ? A : B})
+      for (int k = 0; k < 3; ++k) pos.insert(pos.end(), {t[k].x, t[k].y, t[k].z});
+    std::vector<uint32_t> idx = {0, 1, 2, 3, 4, 5};
+    MeshInput in;
+    in.positions = pos.data();
+    in.num_vertices = 6;
+    in.indices = idx.data();
+    in.num_triangles = 2;
+    for (auto [width, avx512] : widths) {
+      g_bvh8_avx512 = avx512;
+      BuildOptions opt;
+      opt.bvh_width = width;
+      opt.max_leaf_size = 1;
+      opt.collapse_small_subtrees = false;
+      Mesh mesh = build_mesh(in, opt);
+      for (TraversalOrder to : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+        float tmax = kInf;
+        MeshHit mh;
+        ASSERT_TRUE(intersect_mesh(mesh, o, d, tmax, mh, to));
+        EXPECT_EQ(mh.t, t_min) << "order " << order << " width " << width << (avx512 ? " avx512" : "")
+                               << (to == TraversalOrder::Ordered ? " ordered" : " unordered");
+      }
+    }
+  }
+  g_bvh8_avx512 = saved_kernel;
+}
