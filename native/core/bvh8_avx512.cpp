@@ -263,10 +263,16 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
         const __m512i refs = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child)));
         const __m512i entries = _mm512_mask_blend_epi32(0x5555, key, _mm512_permutexvar_epi64(key, refs));
         _mm512_storeu_si512(stack + sp, entries);
-        const int last = __builtin_popcount(mask) - 1;
-        ref = uint32_t(_mm_cvtsi128_si32(_mm512_castsi512_si128(
-            _mm512_permutexvar_epi64(_mm512_set1_epi64(last), entries))));
-        sp += last;
+        // The next node, the nearest hit child (the lowest lane on a tie, as
+        // the sorted keys' last), by a min reduction over the eight entry
+        // distances: the six-step sort above stays off the path to the next
+        // node's loads (only the stack store needs it).
+        __m256i m = _mm256_mask_blend_epi32(__mmask8(mask), _mm256_set1_epi32(0x7FFFFFFF), tnear);
+        m = _mm256_min_epi32(m, _mm256_permute4x64_epi64(m, 0x4E));
+        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
+        ref = n.child[__builtin_ctz(_mm256_mask_cmpeq_epi32_mask(__mmask8(mask), tnear, m))];
+        sp += __builtin_popcount(mask) - 1;
         continue;
       }
     } else if (leaf_intersect(base, ref, ray, t_best, hit)) {

@@ -457,6 +457,7 @@ void compare(const Config& cfg) {
     for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
       const int nt = cfg.threads[ti];
       std::string conf = "threads=" + std::to_string(nt);
+      if (const char* ec = getenv("EMBREE_CONFIG")) conf += std::string(",") + ec;
       RTCDevice dev = rtcNewDevice(conf.c_str());
       rtcSetDeviceMemoryMonitorFunction(dev, embree_monitor, nullptr);
       devices.push_back(dev);
