@@ -1,7 +1,13 @@
-// BVH8 traversal compiled for AVX-512 (F, VL, DQ, BW), chosen at run time
-// over the AVX2 one (bvh8_avx2.cpp) when the CPU has it: same tree, same
-// per-lane arithmetic, same visiting order, so hits are bit for bit those of
-// the AVX2 and SSE2 paths. What AVX-512 changes:
+// BVH8 traversal compiled for AVX-512 (F, VL, DQ, BW) and FMA, chosen at run
+// time over the AVX2 one (bvh8_avx2.cpp) when the CPU has it: same tree, same
+// triangle test. What it changes:
+// - the node test is one multiply-add per plane (b inv - c, c = o inv rounded
+//   outwards per ray; see intersect_node8x) instead of a subtract and a
+//   multiply: one op less on the per-node dependency chain, still
+//   conservative for any origin. Its distances can differ from the AVX2
+//   test's by an ulp, so children with (nearly) equal entry distances may be
+//   visited in another order: the closest hit is the same unless two hits lie
+//   within their t error of each other (coplanar duplicates);
 // - the node test's compare lands in a mask register (no movemask) and the
 //   entry distances stay in a register;
 // - closest hit orders the hit children with a sorting network in one zmm
@@ -13,19 +19,21 @@
 // - any hit pushes the hit children with one compress (vpcompressd) and store.
 // Headers come before the target pragma (see bvh8_avx2.cpp). AVX-512F makes
 // GCC contract a * b + c into FMA (even across intrinsics), which would
-// change the rounding: fp-contract is off for everything below.
+// change the triangle test's rounding: fp-contract is off for everything
+// below; the node test's multiply-adds are explicit.
 #include <immintrin.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <new>
+#include <type_traits>
 
 #include "bvh8.h"
 #include "triangle.h"
 
 #pragma GCC push_options
-#pragma GCC target("avx2,avx512f,avx512vl,avx512dq,avx512bw")
+#pragma GCC target("avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")
 #pragma GCC optimize("fp-contract=off")
 // GCC 12's AVX-512 intrinsics trip -Wmaybe-uninitialized (their
 // _mm512_undefined sources); zmm values never cross a non-inline call here.
@@ -39,7 +47,62 @@
 namespace tessera {
 namespace {
 
+// Ray8's values (bvh8_avx2.cpp: the 1e-30 clamp, 1 / d, widen_far,
+// parallel_axis_delta, flip_sign), the three axes at once in one SSE
+// register: the same operations lane by lane, so the same bits. And the
+// constants of the node test by multiply-add (intersect_node8x<true>).
+struct RaySetup {
+  __m128 inv, inv_far, o_near, o_far, c_near, c_far;
+  int near_bits;
+  bool fma;  // c_near and c_far finite on every axis
+
+  RaySetup(const vec3& origin, const vec3& d) {
+    const __m128 o4 = _mm_setr_ps(origin.x, origin.y, origin.z, 0.0f);
+    const __m128 d4 = _mm_setr_ps(d.x, d.y, d.z, 1.0f);
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 abs_d = _mm_andnot_ps(sign, d4);
+    const __m128 tiny = _mm_cmplt_ps(abs_d, _mm_set1_ps(1e-30f));
+    const __m128 di = _mm_blendv_ps(d4, _mm_or_ps(_mm_and_ps(sign, d4), _mm_set1_ps(1e-30f)), tiny);
+    inv = _mm_div_ps(_mm_set1_ps(1.0f), di);
+    // widen_far: x (1 + 2 gamma(3)), then two ulps out unless zero, inf or
+    // NaN; a magnitude within two ulps of inf becomes inf.
+    const __m128i w = _mm_castps_si128(_mm_mul_ps(inv, _mm_set1_ps(1.0f + 2.0f * gamma(3))));
+    const __m128i mag = _mm_and_si128(w, _mm_set1_epi32(0x7FFFFFFF));
+    const __mmask8 keep = _mm_cmpeq_epi32_mask(mag, _mm_setzero_si128()) | _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFF));
+    const __mmask8 to_inf = _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFD)) & ~keep;
+    __m128i wf = _mm_mask_add_epi32(w, __mmask8(~keep), w, _mm_set1_epi32(2));
+    wf = _mm_mask_or_epi32(wf, to_inf, _mm_and_si128(w, _mm_castps_si128(sign)), _mm_set1_epi32(0x7F800000));
+    inv_far = _mm_castsi128_ps(wf);
+    // near_lo = !(inv >= 0); delta = |d| < 1e-30 ? |o| 1e-6 + 1e-20 : 0, its
+    // sign flipped where near_lo.
+    const __m128 near_neg = _mm_cmpnge_ps(inv, _mm_setzero_ps());
+    near_bits = _mm_movemask_ps(near_neg);
+    const __m128 delta = _mm_and_ps(tiny, _mm_add_ps(_mm_mul_ps(_mm_andnot_ps(sign, o4), _mm_set1_ps(1e-6f)), _mm_set1_ps(1e-20f)));
+    const __m128 signed_delta = _mm_xor_ps(delta, _mm_and_ps(near_neg, sign));
+    o_near = _mm_add_ps(o4, signed_delta);
+    o_far = _mm_sub_ps(o4, signed_delta);
+    // c_near: o_near inv rounded to float, then one ulp up (c_far: o_far
+    // inv_far, one ulp down), so at least (at most) the exact product
+    // whatever the rounding did: on the bit patterns, +1 for a float >= +0
+    // and -1 for a negative one (down: the same on the negated value); + 0
+    // first turns -0 into +0. A short chain after the division (most random
+    // rays visit two nodes: a rounding test in double cost them 10%).
+    auto next_up = [](__m128 x) {
+      const __m128i b = _mm_castps_si128(_mm_add_ps(x, _mm_setzero_ps()));
+      return _mm_castsi128_ps(_mm_add_epi32(b, _mm_or_si128(_mm_srai_epi32(b, 31), _mm_set1_epi32(1))));
+    };
+    c_near = next_up(_mm_mul_ps(o_near, inv));
+    c_far = _mm_xor_ps(next_up(_mm_xor_ps(_mm_mul_ps(o_far, inv_far), sign)), sign);
+    const __m128 inf = _mm_set1_ps(kInf);
+    const __mmask8 finite = _mm_cmp_ps_mask(_mm_andnot_ps(sign, c_near), inf, _CMP_LT_OQ) &
+                            _mm_cmp_ps_mask(_mm_andnot_ps(sign, c_far), inf, _CMP_LT_OQ);
+    fma = (finite & 7) == 7;
+  }
+};
+
 struct Ray8x {
+  // With the node test by multiply-add, org_near and org_far hold
+  // RaySetup's c_near and c_far instead of the origins.
   __m256 org_near[3], org_far[3], inv[3], inv_far[3];
   __m256 tmax8_far;  // tmax widened as the far planes
   __m128 tmax4;
@@ -59,42 +122,20 @@ struct Ray8x {
     return *std::launder(reinterpret_cast<const TriRay4*>(tri_storage));
   }
 
-  // Ray8's values (bvh8_avx2.cpp: the 1e-30 clamp, 1 / d, widen_far,
-  // parallel_axis_delta, flip_sign), the three axes at once in one SSE
-  // register: the same operations lane by lane, so the same bits.
-  Ray8x(const vec3& origin, const vec3& d, float t_max) : org(origin), dir(d) {
-    const __m128 o4 = _mm_setr_ps(origin.x, origin.y, origin.z, 0.0f);
-    const __m128 d4 = _mm_setr_ps(d.x, d.y, d.z, 1.0f);
-    const __m128 sign = _mm_set1_ps(-0.0f);
-    const __m128 abs_d = _mm_andnot_ps(sign, d4);
-    const __m128 tiny = _mm_cmplt_ps(abs_d, _mm_set1_ps(1e-30f));
-    const __m128 di = _mm_blendv_ps(d4, _mm_or_ps(_mm_and_ps(sign, d4), _mm_set1_ps(1e-30f)), tiny);
-    const __m128 inv4 = _mm_div_ps(_mm_set1_ps(1.0f), di);
-    // widen_far: x (1 + 2 gamma(3)), then two ulps out unless zero, inf or
-    // NaN; a magnitude within two ulps of inf becomes inf.
-    const __m128i w = _mm_castps_si128(_mm_mul_ps(inv4, _mm_set1_ps(1.0f + 2.0f * gamma(3))));
-    const __m128i mag = _mm_and_si128(w, _mm_set1_epi32(0x7FFFFFFF));
-    const __mmask8 keep = _mm_cmpeq_epi32_mask(mag, _mm_setzero_si128()) | _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFF));
-    const __mmask8 to_inf = _mm_cmpgt_epi32_mask(mag, _mm_set1_epi32(0x7F7FFFFD)) & ~keep;
-    __m128i wf = _mm_mask_add_epi32(w, __mmask8(~keep), w, _mm_set1_epi32(2));
-    wf = _mm_mask_or_epi32(wf, to_inf, _mm_and_si128(w, _mm_castps_si128(sign)), _mm_set1_epi32(0x7F800000));
-    const __m128 inv_far4 = _mm_castsi128_ps(wf);
-    // near_lo = !(inv >= 0); delta = |d| < 1e-30 ? |o| 1e-6 + 1e-20 : 0, its
-    // sign flipped where near_lo.
-    const __m128 near_neg = _mm_cmpnge_ps(inv4, _mm_setzero_ps());
-    const int near_bits = _mm_movemask_ps(near_neg);
-    const __m128 delta = _mm_and_ps(tiny, _mm_add_ps(_mm_mul_ps(_mm_andnot_ps(sign, o4), _mm_set1_ps(1e-6f)), _mm_set1_ps(1e-20f)));
-    const __m128 signed_delta = _mm_xor_ps(delta, _mm_and_ps(near_neg, sign));
-    const __m128 on4 = _mm_add_ps(o4, signed_delta), of4 = _mm_sub_ps(o4, signed_delta);
+  // kFma: org_near / org_far from the setup's c_near / c_far (the node test
+  // by multiply-add), else its origins. Made after the branch on setup.fma,
+  // so that no node test waits for that check.
+  template <bool kFma>
+  Ray8x(const RaySetup& s, std::bool_constant<kFma>, const vec3& origin, const vec3& d, float t_max) : org(origin), dir(d) {
     auto lane = [](__m128 x, int i) {
       return _mm256_permutevar8x32_ps(_mm256_castps128_ps256(x), _mm256_set1_epi32(i));
     };
     for (int i = 0; i < 3; ++i) {
-      inv[i] = lane(inv4, i);
-      inv_far[i] = lane(inv_far4, i);
-      org_near[i] = lane(on4, i);
-      org_far[i] = lane(of4, i);
-      near_lo[i] = (near_bits >> i) & 1;
+      inv[i] = lane(s.inv, i);
+      inv_far[i] = lane(s.inv_far, i);
+      org_near[i] = lane(kFma ? s.c_near : s.o_near, i);
+      org_far[i] = lane(kFma ? s.c_far : s.o_far, i);
+      near_lo[i] = (s.near_bits >> i) & 1;
     }
     set_tmax(t_max);
   }
@@ -106,14 +147,27 @@ struct Ray8x {
 
 // intersect_node8 (bvh8_avx2.cpp) with the final compare into a mask
 // register; tnear (as integers, >= +0 on hit lanes) in `near`.
+// kFma: each plane distance by one multiply-add, b inv - c, with c = o inv
+// rounded up on the near planes and o inv_far rounded down on the far ones
+// (Ray8x; Embree's node test made one-sided): b inv - c is at most the exact
+// (b - o) inv on the near planes and at least (b - o) inv_far on the far
+// ones, and one rounding follows instead of two, so both stay on the
+// conservative side of intersect_node8's bounds wherever the origin is (the
+// rounding of c moves a plane outwards by an ulp of o inv). Only with c
+// finite on every axis: a c of inf would give inf - inf on the unused
+// lanes' infinite planes.
+template <bool kFma>
 inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& near) {
   const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
-  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
-  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
-  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
-  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
-  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
-  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
+  auto plane = [](const float* b, __m256 o, __m256 inv) {
+    return kFma ? _mm256_fmsub_ps(_mm256_load_ps(b), inv, o) : _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(b), o), inv);
+  };
+  const __m256 tnx = plane(n.box[0 + nx], r.org_near[0], r.inv[0]);
+  const __m256 tfx = plane(n.box[1 - nx], r.org_far[0], r.inv_far[0]);
+  const __m256 tny = plane(n.box[2 + ny], r.org_near[1], r.inv[1]);
+  const __m256 tfy = plane(n.box[3 - ny], r.org_far[1], r.inv_far[1]);
+  const __m256 tnz = plane(n.box[4 + nz], r.org_near[2], r.inv[2]);
+  const __m256 tfz = plane(n.box[5 - nz], r.org_far[2], r.inv_far[2]);
   const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
   const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
   near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));
@@ -194,7 +248,7 @@ __attribute__((always_inline)) inline bool leaf_intersect(const char* base, uint
   return found;
 }
 
-template <bool kOrdered>
+template <bool kOrdered, bool kFma>
 bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
   // Eight entries of slack: pushes store all eight lanes of a zmm.
   alignas(64) WideStackEntry stack[kStackSize + 8];
@@ -203,6 +257,10 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
   uint32_t ref = 0;
   bool found = false;
   float t_best = tmax;
+  // Popped entries are skipped against t_best widened as the node test's far
+  // planes (widen_far), so that a child is dropped only where the node test
+  // with the current t_best would drop it.
+  float t_cull = widen_far(tmax);
   const __m512i lane_ids = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
@@ -210,7 +268,7 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
       WC(nodes);
       _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       __m256i tnear;
-      const unsigned mask = intersect_node8x(n, ray, tnear);
+      const unsigned mask = intersect_node8x<kFma>(n, ray, tnear);
       WCN(hits_children, __builtin_popcount(mask));
       WCH(__builtin_popcount(mask));
       if (mask != 0) {
@@ -259,14 +317,21 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
         const __m512i refs = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child)));
         const __m512i entries = _mm512_mask_blend_epi32(0x5555, key, _mm512_permutexvar_epi64(key, refs));
         _mm512_storeu_si512(stack + sp, entries);
-        const int last = __builtin_popcount(mask) - 1;
-        ref = uint32_t(_mm_cvtsi128_si32(_mm512_castsi512_si128(
-            _mm512_permutexvar_epi64(_mm512_set1_epi64(last), entries))));
-        sp += last;
+        // The next node, the nearest hit child (the lowest lane on a tie, as
+        // the sorted keys' last), by a min reduction over the eight entry
+        // distances: the six-step sort above stays off the path to the next
+        // node's loads (only the stack store needs it).
+        __m256i m = _mm256_mask_blend_epi32(__mmask8(mask), _mm256_set1_epi32(0x7FFFFFFF), tnear);
+        m = _mm256_min_epi32(m, _mm256_permute4x64_epi64(m, 0x4E));
+        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
+        ref = n.child[__builtin_ctz(_mm256_mask_cmpeq_epi32_mask(__mmask8(mask), tnear, m))];
+        sp += __builtin_popcount(mask) - 1;
         continue;
       }
     } else if (leaf_intersect(base, ref, ray, t_best, hit)) {
       found = true;
+      t_cull = widen_far(t_best);
     }
     // Pop, skipping entries farther than the nearest hit so far.
     for (;;) {
@@ -275,12 +340,13 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
         return found;
       }
       --sp;
-      if (stack[sp].t <= t_best) break;
+      if (stack[sp].t <= t_cull) break;
     }
     ref = stack[sp].ref;
   }
 }
 
+template <bool kFma>
 bool occluded8x(const char* base, Ray8x& ray) {
   alignas(32) uint32_t stack[kStackSize + 8];
   int sp = 0;
@@ -291,7 +357,7 @@ bool occluded8x(const char* base, Ray8x& ray) {
       WC(nodes);
       _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
       __m256i tnear;
-      const unsigned mask = intersect_node8x(n, ray, tnear);
+      const unsigned mask = intersect_node8x<kFma>(n, ray, tnear);
       WCN(hits_children, __builtin_popcount(mask));
       WCH(__builtin_popcount(mask));
       if (mask != 0) {
@@ -330,8 +396,13 @@ template <bool kOrdered>
 bool bvh8_intersect_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
   if (bvh.empty()) return false;
   WC(rays);
-  Ray8x ray(o, d, tmax);
-  return intersect8x<kOrdered>(bvh.base(), ray, tmax, hit);
+  const RaySetup s(o, d);
+  if (__builtin_expect(s.fma, 1)) {
+    Ray8x ray(s, std::true_type{}, o, d, tmax);
+    return intersect8x<kOrdered, true>(bvh.base(), ray, tmax, hit);
+  }
+  Ray8x ray(s, std::false_type{}, o, d, tmax);
+  return intersect8x<kOrdered, false>(bvh.base(), ray, tmax, hit);
 }
 
 template bool bvh8_intersect_avx512<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
@@ -340,8 +411,13 @@ template bool bvh8_intersect_avx512<false>(const BVH8&, const vec3&, const vec3&
 bool bvh8_occluded_avx512(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
   if (bvh.empty()) return false;
   WC(rays);
-  Ray8x ray(o, d, tmax);
-  return occluded8x(bvh.base(), ray);
+  const RaySetup s(o, d);
+  if (__builtin_expect(s.fma, 1)) {
+    Ray8x ray(s, std::true_type{}, o, d, tmax);
+    return occluded8x<true>(bvh.base(), ray);
+  }
+  Ray8x ray(s, std::false_type{}, o, d, tmax);
+  return occluded8x<false>(bvh.base(), ray);
 }
 
 }  // namespace tessera

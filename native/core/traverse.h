@@ -61,11 +61,12 @@ inline bool traverse(const BVHNode* nodes, TraversalRay& ray, LeafFn&& intersect
       }
     }
     // Pop, skipping nodes whose entry lies beyond the nearest hit so far
-    // (nearest-hit early-out).
+    // (nearest-hit early-out), against tmax widened as intersect_box's far
+    // distance: a node is skipped only where intersect_box would miss it.
     for (;;) {
       if (sp == 0) return hit;
       --sp;
-      if (stack[sp].t <= ray.tmax) break;
+      if (stack[sp].t <= ray.tmax * (1.0f + 2.0f * gamma(3))) break;
     }
     index = stack[sp].node;
   }

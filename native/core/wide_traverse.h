@@ -39,6 +39,10 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
   uint32_t ref = 0;
   bool found = false;
   float t_best = tmax;
+  // Popped entries are skipped against t_best widened as the node test's far
+  // planes (widen_far), so that a child is dropped only where the node test
+  // with the current t_best would drop it.
+  float t_cull = widen_far(tmax);
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = wide_node<typename Traits::Node>(base, ref);
@@ -109,6 +113,7 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
         t_best = ts[best];
         hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
         Traits::set_tmax(ray, t_best);
+        t_cull = widen_far(t_best);
         found = true;
       }
     }
@@ -119,7 +124,7 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
         return found;
       }
       --sp;
-      if (stack[sp].t <= t_best) break;
+      if (stack[sp].t <= t_cull) break;
     }
     ref = stack[sp].ref;
   }

@@ -15,6 +15,9 @@
 //   bench_bvh --mode build [--engine both|tessera|embree] [--threads 1,2] [--runs N] mesh...
 //             (builds only, engines alternating in one loop per thread count: median wall and
 //             process CPU time; one engine alone for perf / callgrind)
+//   DIFFDUMP=1 bench_bvh --mode compare ...
+//             (prints each ray whose BVH4/BVH8/Embree results differ, with every
+//             triangle the scalar test hits and near misses, brute force)
 //   bench_bvh --mode ab --ab-base avx2-kernel ...
 //             (the default tree traced by the AVX2 BVH8 kernel against the default (AVX-512) kernel)
 //
@@ -31,6 +34,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <fstream>
 #include <cstdio>
@@ -43,6 +47,7 @@
 #include "core/bvh8.h"
 #include "core/mesh.h"
 #include "core/simd.h"
+#include "core/triangle.h"
 #include "io/mesh_file.h"
 #ifdef TESSERA_BVH_COUNTERS
 #include "core/simd_tri4.h"
@@ -189,6 +194,39 @@ Mesh tessera_build(const TriangleSoup& s, const BuildOptions& opt) {
   in.indices = s.indices.data();
   in.num_triangles = s.num_triangles();
   return build_mesh(in, opt);
+}
+
+// Diagnostic (DIFFDUMP=1): every triangle the scalar watertight test hits
+// with tmax inf, with the distance to its plane in double.
+void brute_force_dump(const TriangleSoup& s, const vec3& o, const vec3& d) {
+  const RayShear sh(d);
+  for (size_t k = 0; k < s.num_triangles(); ++k) {
+    vec3 p[3];
+    double P[3][3];
+    for (int j = 0; j < 3; ++j) {
+      const float* q = &s.positions[3 * s.indices[3 * k + j]];
+      p[j] = vec3(q[0], q[1], q[2]);
+      for (int c = 0; c < 3; ++c) P[j][c] = q[c];
+    }
+    double e1[3], e2[3], n[3];
+    for (int c = 0; c < 3; ++c) e1[c] = P[1][c] - P[0][c], e2[c] = P[2][c] - P[0][c];
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2], n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    const double dn = n[0] * d.x + n[1] * d.y + n[2] * d.z;
+    const double tp = ((P[0][0] - o.x) * n[0] + (P[0][1] - o.y) * n[1] + (P[0][2] - o.z) * n[2]) / dn;
+    TriangleHit h;
+    const bool hit = intersect_triangle(p[0], p[1], p[2], o, sh, kInf, h);
+    if (hit || (tp > 0 && tp < 10 && std::fabs(dn) > 0)) {
+      // near misses: barycentrics in double
+      double q[3] = {o.x + tp * d.x - P[0][0], o.y + tp * d.y - P[0][1], o.z + tp * d.z - P[0][2]};
+      double d00 = e1[0]*e1[0]+e1[1]*e1[1]+e1[2]*e1[2], d01 = e1[0]*e2[0]+e1[1]*e2[1]+e1[2]*e2[2], d11 = e2[0]*e2[0]+e2[1]*e2[1]+e2[2]*e2[2];
+      double d20 = q[0]*e1[0]+q[1]*e1[1]+q[2]*e1[2], d21 = q[0]*e2[0]+q[1]*e2[1]+q[2]*e2[2];
+      double den = d00 * d11 - d01 * d01, bv = (d11 * d20 - d01 * d21) / den, bw = (d00 * d21 - d01 * d20) / den;
+      double bu = 1 - bv - bw, mn = std::min(bu, std::min(bv, bw));
+      if (hit || mn > -1e-5)
+        std::fprintf(stderr, "   tri %zu hit %d t %.9g plane t %.12g bary min %.3g v %.9g %.9g %.9g / %.9g %.9g %.9g / %.9g %.9g %.9g\n", k, int(hit), hit ? h.t : -1.0f, tp, mn,
+                     p[0].x, p[0].y, p[0].z, p[1].x, p[1].y, p[1].z, p[2].x, p[2].y, p[2].z);
+    }
+  }
 }
 
 void tessera_trace(const Mesh& mesh, const RayArray& rays, size_t begin, size_t end, Results& out,
@@ -419,6 +457,7 @@ void compare(const Config& cfg) {
     for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
       const int nt = cfg.threads[ti];
       std::string conf = "threads=" + std::to_string(nt);
+      if (const char* ec = getenv("EMBREE_CONFIG")) conf += std::string(",") + ec;
       RTCDevice dev = rtcNewDevice(conf.c_str());
       rtcSetDeviceMemoryMonitorFunction(dev, embree_monitor, nullptr);
       devices.push_back(dev);
@@ -476,6 +515,13 @@ void compare(const Config& cfg) {
         size_t bad = 0;
         double agree = agreement(rt, re, &bad);
         if (rs4.t != rt.t) std::fprintf(stderr, "warning: BVH4 and BVH8 results differ on %s %s\n", name.c_str(), rays.kind.c_str());
+        if (getenv("DIFFDUMP"))
+          for (size_t i = 0; i < rays.size(); ++i)
+            if (rs4.t[i] != rt.t[i] || (rt.t[i] != re.t[i] && !(std::fabs(rt.t[i] - re.t[i]) <= 1e-4f * std::fabs(re.t[i]))))
+              std::fprintf(stderr, "ray %zu o %.9g %.9g %.9g d %.9g %.9g %.9g tmax %.9g: t8 %.9g t4 %.9g embree %.9g\n", i,
+                           rays.o[i].x, rays.o[i].y, rays.o[i].z, rays.d[i].x, rays.d[i].y, rays.d[i].z, rays.tmax[i],
+                           rt.t[i], rs4.t[i], re.t[i]),
+              brute_force_dump(soup, rays.o[i], rays.d[i]);
         double mt = rays.size() / median(st) * 1e-6, me = rays.size() / median(se) * 1e-6;
         double m4 = rays.size() / median(s4) * 1e-6;
         std::snprintf(line, sizeof line, "| %s | %s | %zu | %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.4f%% (%zu differ) |\n",

@@ -288,6 +288,63 @@ TEST(Triangle, Bvh8Avx512KernelEqualsAvx2Kernel) {
   EXPECT_GT(multi, 10);
 }
 
+// The AVX-512 kernel's node test by multiply-add (per-ray constants o inv
+// rounded outwards) stays conservative far from the origin: the random soup
+// moved out to 1e4 and 1e6 (and axis-parallel rays there, whose o inv is
+// ~1e36, and from 1e9, where it is inf and the kernel falls back to the
+// subtract-then-multiply test), rays aimed exactly at vertices (box corners)
+// and along the planar squares' edges: the closest hit equals the scalar
+// test over every triangle, and the AVX2 kernel's.
+TEST(Triangle, Bvh8Avx512KernelFarFromOriginMatchesBruteForce) {
+  if (!cpu_has_avx512()) GTEST_SKIP() << "no AVX-512 on this CPU (or TESSERA_SIMD set)";
+  const bool saved_kernel = g_bvh8_avx512;
+  for (float offset : {1e4f, 1e6f}) {
+    std::vector<float> pos;
+    std::vector<uint32_t> idx;
+    MeshInput in = random_soup(pos, idx);
+    const vec3 shift(offset, -0.5f * offset, 0.25f * offset);
+    for (size_t i = 0; i < pos.size(); i += 3) pos[i] += shift.x, pos[i + 1] += shift.y, pos[i + 2] += shift.z;
+    BuildOptions o8;
+    o8.bvh_width = 8;
+    const Mesh m = build_mesh(in, o8);
+    ASSERT_EQ(m.width(), 8);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::uniform_int_distribution<size_t> pick(0, pos.size() / 3 - 1);
+    int hits = 0;
+    for (int i = 0; i < 3000; ++i) {
+      vec3 o = shift + vec3(1.5f * u(rng), 1.5f * u(rng), 1.5f * u(rng));
+      const size_t v = pick(rng);
+      vec3 d = vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]) - o;  // at a vertex
+      if (i % 3 == 0) d = vec3(u(rng), u(rng), u(rng));
+      if (i % 5 == 0) o.z = shift.z + 0.5f, d.z = 0.0f;  // in the squares' plane
+      if (i % 7 == 0) d = vec3(0.0f, 0.0f, i & 8 ? 1.0f : -1.0f), o.x = shift.x + (i & 16 ? 1.0f : -1.0f);  // along an edge
+      if (i % 11 == 0) d.y = (i & 1 ? 1e-35f : -1e-31f);
+      if (i % 13 == 0) o.x = 1e9f;  // o inv overflows on the parallel axes
+      if (glm::length(d) == 0.0f) continue;
+      const RayShear sh(d);
+      float t_ref = kInf;
+      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+        TriangleHit th;
+        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th))
+          t_ref = th.t;
+      }
+      for (bool avx512 : {false, true}) {
+        g_bvh8_avx512 = avx512;
+        float t = kInf;
+        MeshHit h;
+        const bool f = intersect_mesh(m, o, d, t, h);
+        ASSERT_EQ(f, t_ref != kInf) << "offset " << offset << " ray " << i << (avx512 ? " avx512" : " avx2");
+        if (f) ASSERT_EQ(h.t, t_ref) << "offset " << offset << " ray " << i << (avx512 ? " avx512" : " avx2");
+        ASSERT_EQ(occluded_mesh(m, o, d, kInf), t_ref != kInf) << "offset " << offset << " ray " << i;
+      }
+      hits += t_ref != kInf;
+    }
+    EXPECT_GT(hits, 1000) << "offset " << offset;
+  }
+  g_bvh8_avx512 = saved_kernel;
+}
+
 // The AVX2 BVH8 (eight-wide nodes) and the SSE2 BVH4 give bit-identical
 // closest hits (t, u, v, triangle) and the same any-hit answers: both use the
 // same binary tree, the same slab arithmetic per lane and the same Tri4 test.
@@ -483,4 +540,60 @@ TEST(Intersection, BranchFreeShearMatchesMaxDimension) {
         ASSERT_EQ(s.sy, d[ky] / d[kz]);
         ASSERT_EQ(s.sz, 1.0f / d[kz]);
       }
+}
+
+// Closest hit must not depend on the order triangles are tested in. Two
+// coplanar triangles of modern_hall (overlapping: the same wall twice) and a
+// ray that hits both at distances one ulp apart: the range test on
+// t_scaled against tmax * det used to reject the nearer one (its rounded t
+// below tmax) once the farther one had set tmax, so BVH4 and BVH8 (different
+// visiting orders) returned different hits.
+TEST(Triangle, ClosestHitIndependentOfTestOrder) {
+  const vec3 A[3] = {vec3(-10.2392635f, 0.59454298f, 2.59882995e-08f), vec3(-14.1093121f, 0.59454298f, 2.59882995e-08f),
+                     vec3(-14.1093121f, -0.0890169963f, -3.89105637e-09f)};
+  const vec3 B[3] = {vec3(-13.7577667f, -0.0860169977f, -3.7599226e-09f), vec3(-14.1093121f, -0.0860169977f, -3.7599226e-09f),
+                     vec3(-14.1093121f, 0.59454298f, 2.59882995e-08f)};
+  const vec3 o(-12.3104649f, 1.637887f, -1.37166548f), d(-0.678468108f, -0.509929895f, 0.528821826f);
+  const RayShear sh(d);
+  TriangleHit ha, hb;
+  ASSERT_TRUE(intersect_triangle(A[0], A[1], A[2], o, sh, kInf, ha));
+  ASSERT_TRUE(intersect_triangle(B[0], B[1], B[2], o, sh, kInf, hb));
+  ASSERT_NE(ha.t, hb.t);
+  const float t_min = std::min(ha.t, hb.t);
+  // Tested with tmax = the other's distance, the nearer one still hits.
+  TriangleHit h;
+  if (ha.t < hb.t) EXPECT_TRUE(intersect_triangle(A[0], A[1], A[2], o, sh, hb.t, h));
+  else EXPECT_TRUE(intersect_triangle(B[0], B[1], B[2], o, sh, ha.t, h));
+  // Each triangle its own leaf, both input orders, every traversal kernel.
+  std::vector<std::pair<int, bool>> widths{{4, false}};
+  if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back({8, false});
+  if (cpu_has_avx512()) widths.push_back({8, true});
+  const bool saved_kernel = g_bvh8_avx512;
+  for (int order = 0; order < 2; ++order) {
+    std::vector<float> pos;
+    for (const vec3* t : {order ? B : A, order ? A : B})
+      for (int k = 0; k < 3; ++k) pos.insert(pos.end(), {t[k].x, t[k].y, t[k].z});
+    std::vector<uint32_t> idx = {0, 1, 2, 3, 4, 5};
+    MeshInput in;
+    in.positions = pos.data();
+    in.num_vertices = 6;
+    in.indices = idx.data();
+    in.num_triangles = 2;
+    for (auto [width, avx512] : widths) {
+      g_bvh8_avx512 = avx512;
+      BuildOptions opt;
+      opt.bvh_width = width;
+      opt.max_leaf_size = 1;
+      opt.collapse_small_subtrees = false;
+      Mesh mesh = build_mesh(in, opt);
+      for (TraversalOrder to : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
+        float tmax = kInf;
+        MeshHit mh;
+        ASSERT_TRUE(intersect_mesh(mesh, o, d, tmax, mh, to));
+        EXPECT_EQ(mh.t, t_min) << "order " << order << " width " << width << (avx512 ? " avx512" : "")
+                               << (to == TraversalOrder::Ordered ? " ordered" : " unordered");
+      }
+    }
+  }
+  g_bvh8_avx512 = saved_kernel;
 }
