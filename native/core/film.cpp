@@ -192,11 +192,21 @@ double Film::estimated_relative_error(double firefly_threshold) {
     const int slot = slot_of_[i];
     return slot >= int(grid_slots_) && replicate_samples_[size_t(slot)] == count_[i];
   };
-  double fireflies = 0.0;
+  // Room for more followed pixels (below), and if there is, the sum over
+  // pixels of the sample variance / n, all and near a bright sample.
+  const size_t followed_streams = replicate_sum_.size() - grid_slots_;
+  const size_t room = (grid_slots_ - std::min(grid_slots_, followed_streams)) / size_t(kFollowStreams);
+  const bool may_follow = room > 0 && threshold < kInf;
+  double fireflies = 0.0, near_proxy = 0.0, all_proxy = 0.0;
   size_t near = 0;
   for (size_t i = 0; i < n_pixels; ++i) {
     near += near_bright[i] > 0.0f;
     const int n = count_[i];
+    if (may_follow && n > 1) {
+      const double v = sample_variance(i) / double(n);
+      all_proxy += v;
+      if (near_bright[i] > 0.0f) near_proxy += v;
+    }
     if (n == 0 || !firefly(i, sum_[i], max_[i], n) || followed(i)) continue;
     const vec3 rest = (sum_[i] - max_[i]) / float(n - 1);
     const vec3 d = (max_[i] - rest) / float(n);
@@ -261,22 +271,12 @@ double Film::estimated_relative_error(double firefly_threshold) {
   // they would have with independent samples), while the followed pixels'
   // streams number fewer than the grid's. A grid pixel chosen gets a slot of
   // its own (its grid slot is dropped from the grid's figures).
-  const size_t followed_streams = replicate_sum_.size() - grid_slots_;
-  const size_t room = (grid_slots_ - std::min(grid_slots_, followed_streams)) / size_t(kFollowStreams);
   // Only while the pixels near a bright sample carry kFollowShare of the
   // image's error or more, by the sample variance over n of the pixels (a
   // measure that does not depend on the grid having seen them): elsewhere
   // the grid's figure for them is good enough for the image's, and their
   // streams would cost samples for nothing (modern_hall.blend).
-  double near_proxy = 0.0, all_proxy = 0.0;
-  if (room > 0 && threshold < kInf)
-    for (size_t i = 0; i < n_pixels; ++i) {
-      if (count_[i] < 2) continue;
-      const double v = sample_variance(i) / double(count_[i]);
-      all_proxy += v;
-      if (near_bright[i] > 0.0f) near_proxy += v;
-    }
-  if (room > 0 && threshold < kInf && near_proxy >= kFollowShare * all_proxy && near_proxy > 0.0) {
+  if (may_follow && near_proxy >= kFollowShare * all_proxy && near_proxy > 0.0) {
     // The key: the pixel's sample variance over n (its error were its samples
     // independent) or, if larger, the error one bright sample puts in it,
     // (b / n)^2, b its own brightest sample or half the brightest within a
