@@ -62,21 +62,17 @@ void Film::resize(int width, int height, bool estimate_error) {
     stride_ *= 2;
   const int replicate_columns = (width + stride_ - 1) / stride_;
   slot_of_.assign(estimate_error ? n : 0, -1);
-  replicate_sum_.clear(), replicate_max_.clear(), replicate_start_sum_.clear();
-  replicate_pixel_.clear(), replicate_start_.clear();
+  for (auto* v : {&replicate_pixel_, &replicate_first_, &replicate_streams_, &replicate_samples_}) v->clear();
+  replicate_sum_.clear(), replicate_max_.clear();
   grid_slots_ = estimate_error ? size_t(replicate_columns) * ((height + stride_ - 1) / stride_) : 0;
-  // Room for the grid and as many followed pixels, so that adding a slot
-  // never moves the buffers.
-  for (auto* v : {&replicate_sum_, &replicate_max_, &replicate_start_sum_}) v->reserve(2 * grid_slots_);
-  replicate_pixel_.reserve(2 * grid_slots_), replicate_start_.reserve(2 * grid_slots_);
   if (!estimate_error) return;
   for (int y = 0; y < height; y += stride_)
     for (int x = 0; x < width; x += stride_) {
       const size_t i = size_t(y) * size_t(width) + size_t(x);
-      slot_of_[i] = int(replicate_sum_.size());
+      slot_of_[i] = int(replicate_pixel_.size());
+      replicate_pixel_.push_back(int(i)), replicate_first_.push_back(int(replicate_sum_.size()));
+      replicate_streams_.push_back(1), replicate_samples_.push_back(0);
       replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
-      replicate_start_sum_.push_back(vec3(0.0f));
-      replicate_pixel_.push_back(int(i)), replicate_start_.push_back(0);
     }
 }
 
@@ -121,20 +117,18 @@ double Film::sample_variance(size_t i) const {
 // none yet where it expects under one, and its error is that count's last
 // unit or two, about the light's value / n. The grid held one of them, which
 // stood for 16 pixels (estimate/true 0.09-3.69 at 4-128 spp, 8 seeds;
-// docs/convergence/ADAPTIVE.md). So the pixels near a bright sample (one over
-// the threshold within one pixel) are a stratum apart: a replicated one
-// counts its own replicate pair, the others (new, or over the cap) the mean
-// of the grid's pixels in the stratum, and the remaining pixels the mean of
-// the grid's other pixels. Each estimate gives replicates to the brightest
-// such pixels still without one, up to the grid's count. A replicate added
-// when the pixel had a samples compares the pixel's samples a .. n - 1 with
-// its own: (d^2 / 2) ((n - a) / n)^2, the error those samples put into the
-// pixel's mean, the first a samples' left out. Where the error is a count
-// stratified to within a sample or two whatever n is (a light seen
-// directly), that is the pixel's; for independent samples it is short by
-// n / (n - a) (4/3 at most for a light found in the first 4 of 16 samples).
-// With (n - a) / n (right for independent samples) veach_mis.blend's
-// estimate was 1.3-1.4x its true error at 16-128 spp, on average over seeds.
+// docs/convergence/ADAPTIVE.md). And since that count is set by the Sobol
+// points (often the same for every seed), one image's error strays far from
+// the expected error (0.40-1.51x at 4 spp): an estimate of the expected
+// error cannot be within 1.5x of every image's. So the pixels near a bright
+// sample (one over the threshold within one pixel) are a stratum apart, and
+// the ones that carry the most are followed: kFollowStreams streams each,
+// traced from sample 0, whose mean is a reference for this image's pixel
+// (below); the stratum's other pixels count the mean of the grid's pixels
+// in it, the remaining pixels the mean of the grid's other pixels. A grid
+// pixel's single stream gives the expected error only; 8 streams a followed
+// pixel held veach_mis.blend within 0.68-1.39x at 16-128 spp (4 streams:
+// 0.67-1.55; 16, on half as many pixels: 0.67-1.57).
 //
 // A replicate pair: x1 - x2 over the samples both have, each side's firefly
 // taken out (x1, x2 independent estimates of the pixel's mean: (x1 - x2)^2 / 2
@@ -144,7 +138,7 @@ double Film::sample_variance(size_t i) const {
 // carry the error and the Sobol points' gain differs from pixel to pixel;
 // per-group ratios 2.4-4.3x on the Mitsuba box).
 double Film::estimated_relative_error(double firefly_threshold) {
-  if (replicate_sum_.empty()) return 0.0;
+  if (replicate_pixel_.empty()) return 0.0;
   const size_t n_pixels = sum_.size();
   double mean = 0.0;
   for (size_t i = 0; i < n_pixels; ++i) {
@@ -192,74 +186,129 @@ double Film::estimated_relative_error(double firefly_threshold) {
     const double s = rgb(max);
     return s > threshold && s > kFireflyDominance * rgb(sum - max);
   };
-  double fireflies = 0.0;
+  // Followed pixels (a slot past the grid's whose streams have all the
+  // pixel's samples) count their own error, fireflies included.
+  auto followed = [&](size_t i) {
+    const int slot = slot_of_[i];
+    return slot >= int(grid_slots_) && replicate_samples_[size_t(slot)] == count_[i];
+  };
+  // Room for more followed pixels (below), and if there is, the sum over
+  // pixels of the sample variance / n, all and near a bright sample.
+  const size_t followed_streams = replicate_sum_.size() - grid_slots_;
+  const size_t room = (grid_slots_ - std::min(grid_slots_, followed_streams)) / size_t(kFollowStreams);
+  const bool may_follow = room > 0 && threshold < kInf;
+  double fireflies = 0.0, near_proxy = 0.0, all_proxy = 0.0;
   size_t near = 0;
   for (size_t i = 0; i < n_pixels; ++i) {
     near += near_bright[i] > 0.0f;
     const int n = count_[i];
-    if (n == 0 || !firefly(i, sum_[i], max_[i], n)) continue;
+    if (may_follow && n > 1) {
+      const double v = sample_variance(i) / double(n);
+      all_proxy += v;
+      if (near_bright[i] > 0.0f) near_proxy += v;
+    }
+    if (n == 0 || !firefly(i, sum_[i], max_[i], n) || followed(i)) continue;
     const vec3 rest = (sum_[i] - max_[i]) / float(n - 1);
     const vec3 d = (max_[i] - rest) / float(n);
     fireflies += rgb(d * d);
   }
-  // The replicate pairs: own (pixels near a bright sample counted for
-  // themselves), the grid's pixels near one and the grid's others.
-  double own = 0.0, own_near_sum = 0.0, grid_near = 0.0, grid_far = 0.0;
+  // A followed pixel: its mean x against the mean r of its K streams' means
+  // r_k (each an independent estimate of the pixel's value from the same
+  // samples): E[|x - r|^2 | x] = |x - truth|^2 + var(r), and var(r) is
+  // estimated by the streams' sample variance / K, so the difference is an
+  // unbiased estimate of this image's squared error at the pixel, whatever
+  // made the pixel be chosen (the streams are independent of the image).
+  // A grid pixel: its mean against its one stream's, without either side's
+  // firefly: (d^2 / 2) estimates the variance of the pixel's mean (the
+  // expected error), which the grid's pixels stand for over their stratum.
+  double own = 0.0, grid_near = 0.0, grid_far = 0.0;
   size_t own_near = 0, own_far = 0, n_grid_near = 0, n_grid_far = 0;
-  for (size_t slot = 0; slot < replicate_sum_.size(); ++slot) {
+  for (size_t slot = 0; slot < replicate_pixel_.size(); ++slot) {
     const size_t i = size_t(replicate_pixel_[slot]);
-    const int n = count_[i], a = replicate_start_[slot], m = n - a;
-    const bool grid = slot < grid_slots_;
-    if (m < (grid ? 1 : 2)) continue;  // a followed pixel without two samples: as unreplicated
-    vec3 x1 = sum_[i] - replicate_start_sum_[slot], x2 = replicate_sum_[slot];
-    int m1 = m, m2 = m;
-    // Without their fireflies (counted above, from every pixel).
-    if (max_index_[i] >= a && firefly(i, sum_[i], max_[i], n)) x1 -= max_[i], --m1;
-    if (firefly(i, x2, replicate_max_[slot], m)) x2 -= replicate_max_[slot], --m2;
-    const vec3 d = x1 / float(m1) - x2 / float(m2);
-    const double share = double(m) / double(n);
-    const double r = 0.5 * rgb(d * d) * share * share;
+    const int n = count_[i];
+    if (slot_of_[i] != int(slot) || replicate_samples_[slot] != n || n == 0) continue;  // superseded or behind
+    const size_t first = size_t(replicate_first_[slot]);
     const bool is_near = near_bright[i] > 0.0f;
-    if (grid && !is_near) {
-      grid_far += r, ++n_grid_far;
+    if (slot >= grid_slots_) {
+      const int k_streams = replicate_streams_[slot];
+      vec3 r(0.0f);
+      for (int k = 0; k < k_streams; ++k) r += replicate_sum_[first + k];
+      r /= float(k_streams) * float(n);
+      double spread = 0.0;
+      for (int k = 0; k < k_streams; ++k) {
+        const vec3 d = replicate_sum_[first + k] / float(n) - r;
+        spread += rgb(d * d);
+      }
+      const vec3 d = this->mean(i) - r;
+      own += rgb(d * d) - spread / double(k_streams - 1) / double(k_streams);
+      ++(is_near ? own_near : own_far);
       continue;
     }
-    own += r;
-    if (is_near) own_near_sum += r, ++own_near;
-    else ++own_far;
-    if (grid) grid_near += r, ++n_grid_near;
+    vec3 x1 = sum_[i], x2 = replicate_sum_[first];
+    int m1 = n, m2 = n;
+    // Without their fireflies (counted above, from every pixel).
+    if (firefly(i, sum_[i], max_[i], n)) x1 -= max_[i], --m1;
+    if (firefly(i, x2, replicate_max_[first], n)) x2 -= replicate_max_[first], --m2;
+    if (m1 == 0 || m2 == 0) continue;
+    const vec3 d = x1 / float(m1) - x2 / float(m2);
+    const double r = 0.5 * rgb(d * d);
+    if (is_near) grid_near += r, ++n_grid_near;
+    else grid_far += r, ++n_grid_far;
   }
   if (n_grid_far + n_grid_near == 0) return 0.0;
-  // Pixels without a replicate of their own, by the grid's of their stratum
-  // (near a bright sample with none of the grid's there: by the replicated
-  // pixels near one; failing all, the whole grid's).
+  // The pixels not followed, by the grid's of their stratum (near a bright
+  // sample with none of the grid's there, or none away from one: the whole
+  // grid's). The followed pixels' sum can be under 0 (each is unbiased, not
+  // positive): not below 0.
   const double grid_mean = (grid_near + grid_far) / double(n_grid_near + n_grid_far);
   const double rest_near = double(near - own_near), rest_far = double(n_pixels - near - own_far);
-  double variance = own + fireflies;
-  variance += rest_near * (n_grid_near > 0 ? grid_near / double(n_grid_near)
-                           : own_near > 0  ? own_near_sum / double(own_near)
-                                           : grid_mean);
+  double variance = std::max(0.0, own) + fireflies;
+  variance += rest_near * (n_grid_near > 0 ? grid_near / double(n_grid_near) : grid_mean);
   variance += rest_far * (n_grid_far > 0 ? grid_far / double(n_grid_far) : grid_mean);
   variance /= 3.0 * double(n_pixels);
-  // Follow the error: replicates for the brightest pixels near a bright
-  // sample that have none, up to the grid's count.
-  const size_t room = 2 * grid_slots_ - replicate_sum_.size();
-  if (room > 0 && threshold < kInf) {
-    std::vector<std::pair<float, int>> wanted;
+  // Follow the error: kFollowStreams streams each for the unfollowed pixels
+  // near a bright sample with the largest sample variance over n (the error
+  // they would have with independent samples), while the followed pixels'
+  // streams number fewer than the grid's. A grid pixel chosen gets a slot of
+  // its own (its grid slot is dropped from the grid's figures).
+  // Only while the pixels near a bright sample carry kFollowShare of the
+  // image's error or more, by the sample variance over n of the pixels (a
+  // measure that does not depend on the grid having seen them): elsewhere
+  // the grid's figure for them is good enough for the image's, and their
+  // streams would cost samples for nothing (modern_hall.blend).
+  if (may_follow && near_proxy >= kFollowShare * all_proxy && near_proxy > 0.0) {
+    // The key: the pixel's sample variance over n (its error were its samples
+    // independent) or, if larger, the error one bright sample puts in it,
+    // (b / n)^2, b its own brightest sample or half the brightest within a
+    // pixel, if more (a pixel next to a small light that has not seen it
+    // yet; half: ranked after the pixels that have); ties to the pixel with
+    // the brighter sample of its own, then the lower index. From two samples
+    // on (one sample has no variance).
+    struct Wanted {
+      double key, own;
+      int i;
+      bool operator<(const Wanted& q) const { return key > q.key || (key == q.key && (own > q.own || (own == q.own && i < q.i))); }
+    };
+    std::vector<Wanted> wanted;
     for (size_t i = 0; i < n_pixels; ++i)
-      if (near_bright[i] > 0.0f && slot_of_[i] < 0 && active_[i] && count_[i] > 0)
-        wanted.emplace_back(near_bright[i], int(i));
-    if (wanted.size() > room) {
-      std::nth_element(wanted.begin(), wanted.begin() + room, wanted.end(),
-                       [](const auto& p, const auto& q) { return p.first > q.first || (p.first == q.first && p.second < q.second); });
-      wanted.resize(room);
+      if (near_bright[i] > 0.0f && slot_of_[i] < int(grid_slots_) && active_[i] && count_[i] > 1) {
+        const double n = double(count_[i]), one = std::max(rgb(max_[i]), 0.5 * double(near_bright[i])) / n;
+        wanted.push_back({std::max(sample_variance(i) / n, one * one), rgb(max_[i]), int(i)});
+      }
+    // At most half the room now: a pixel whose rare samples have not shown
+    // up yet may rank low at this pass and high at the next.
+    const size_t now = (room + 1) / 2;
+    if (wanted.size() > now) {
+      std::nth_element(wanted.begin(), wanted.begin() + now, wanted.end());
+      wanted.resize(now);
     }
-    std::sort(wanted.begin(), wanted.end(), [](const auto& p, const auto& q) { return p.second < q.second; });
-    for (const auto& [key, i] : wanted) {
-      slot_of_[size_t(i)] = int(replicate_sum_.size());
-      replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
-      replicate_start_sum_.push_back(sum_[size_t(i)]);
-      replicate_pixel_.push_back(i), replicate_start_.push_back(count_[size_t(i)]);
+    std::sort(wanted.begin(), wanted.end(), [](const Wanted& p, const Wanted& q) { return p.i < q.i; });
+    for (const Wanted& p : wanted) {
+      const int i = p.i;
+      slot_of_[size_t(i)] = int(replicate_pixel_.size());
+      replicate_pixel_.push_back(i), replicate_first_.push_back(int(replicate_sum_.size()));
+      replicate_streams_.push_back(kFollowStreams), replicate_samples_.push_back(0);
+      for (int k = 0; k < kFollowStreams; ++k) replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
     }
   }
   return std::sqrt(variance) / (mean / (3.0 * double(n_pixels)));

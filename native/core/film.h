@@ -38,13 +38,18 @@ namespace tessera {
 // apart from the image. The grid is a systematic sample of the image, which
 // misses error that sits on a few pixels (a small bright light seen directly
 // puts nearly all of veach_mis.blend's error on ~10 pixels), so replicates
-// also follow the error: from each estimate on, pixels with a bright sample
-// and their neighbours get a replicate too (at most as many as the grid has),
-// starting from the pixel's count then (film.cpp).
+// also follow the error: from each estimate on, the pixels near a bright
+// sample with the largest sample variance over n get kFollowStreams
+// replicate streams each (as many streams as the grid has, at most), traced
+// from sample 0 (catching up when the pixel is followed). Their mean is a
+// reference for this image's pixel, not only for its expected error
+// (film.cpp).
 class Film {
  public:
   static constexpr int kMinReplicatePixels = 256;
   static constexpr int kMaxReplicateStride = 16;
+  static constexpr int kFollowStreams = 8;  // replicate streams of a followed pixel
+  static constexpr double kFollowShare = 0.25;  // followed while the pixels near bright samples carry this much
 
   // n = width * height pixels; replicates only with estimate_error.
   void resize(int width, int height, bool estimate_error);
@@ -76,19 +81,29 @@ class Film {
   vec3 mean(size_t i) const { return count_[i] > 0 ? sum_[i] / float(count_[i]) : vec3(0.0f); }
 
   // The replicate slot of pixel (x, y) of the film, or -1 if it has none:
-  // the grid's pixels, and from each estimate on the bright pixels it chose.
+  // the grid's pixels, and from each estimate on the pixels it chose to
+  // follow. A slot has replicate_streams(slot) independently scrambled
+  // streams (stream k: seed + (k + 1) kReplicateSeed, render.h), each with the
+  // pixel's samples 0 .. replicate_samples(slot) - 1; the renderer brings
+  // them up to the pixel's count (add_replicate, then set_replicate_samples).
   // Read by the tiles during a pass; slots are only added between passes.
   int replicate_slot(int x, int y) const {
     return slot_of_.empty() ? -1 : slot_of_[size_t(y) * size_t(width_) + size_t(x)];
   }
-  void add_replicate(int slot, const vec3& L) {
-    replicate_sum_[size_t(slot)] += L;
-    vec3& m = replicate_max_[size_t(slot)];
+  int replicate_streams(int slot) const { return replicate_streams_[size_t(slot)]; }
+  int replicate_samples(int slot) const { return replicate_samples_[size_t(slot)]; }
+  void set_replicate_samples(int slot, int n) { replicate_samples_[size_t(slot)] = n; }
+  void add_replicate(int slot, int stream, const vec3& L) {
+    const size_t k = size_t(replicate_first_[size_t(slot)] + stream);
+    replicate_sum_[k] += L;
+    vec3& m = replicate_max_[k];
     if (L.x + L.y + L.z > m.x + m.y + m.z) m = L;
   }
   int replicate_stride() const { return stride_; }
   size_t replicate_grid_size() const { return grid_slots_; }
-  size_t replicate_count() const { return replicate_sum_.size(); }  // grid and followed pixels
+  // Replicate streams, the grid's and the followed pixels' (what they cost:
+  // each stream traces its pixel's samples once more).
+  size_t replicate_count() const { return replicate_sum_.size(); }
 
   // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
@@ -100,17 +115,19 @@ class Film {
   // bright samples (fireflies) carry it.
   double sample_variance(size_t i) const;
   // Estimated relative RMSE of the image: sqrt(mean variance over pixels and
-  // channels) / mean pixel value. Fireflies (a sample over firefly_threshold
-  // x the image's mean pixel value and over kFireflyDominance x the sum of
-  // the pixel's other samples, in a pixel with no neighbour whose samples
-  // but the brightest have a mean over the threshold) count as the error they put into their pixel, from
-  // every pixel; the rest from the replicates: a replicated pixel
-  // near a bright sample (over the threshold, within one pixel) for itself,
-  // the other pixels near one by the grid's, the remaining pixels by the
-  // grid's pixels that are not near one (film.cpp). Then, for the passes
-  // after this call, gives replicates to the brightest unreplicated pixels
-  // near a bright sample (up to the grid's count). firefly_threshold 0: the
-  // grid alone, nothing added. 0 without replicates.
+  // channels) / mean pixel value. A followed pixel counts its own error: its
+  // mean against its streams' mean, less the variance of that mean (from
+  // the streams' spread). Fireflies (a sample over firefly_threshold x the
+  // image's mean pixel value and over kFireflyDominance x the sum of the
+  // pixel's other samples, in a pixel with no neighbour whose samples but the
+  // brightest have a mean over the threshold) count as the error they put
+  // into their pixel, from every other pixel; the rest from the grid: the
+  // pixels near a bright sample (over the threshold, within one pixel) by the
+  // grid's pixels near one, the remaining pixels by the grid's others
+  // (film.cpp). Then, for the passes after this call, gives streams to the
+  // unfollowed pixels near a bright sample with the largest sample variance
+  // over n (as many streams as the grid has, at most). firefly_threshold 0:
+  // the grid alone, nothing added. 0 without replicates.
   static constexpr double kFireflyThreshold = 16.0;
   static constexpr double kFireflyDominance = 2.0;  // x the sum of the pixel's other samples
   double estimated_relative_error(double firefly_threshold = kFireflyThreshold);
@@ -125,12 +142,10 @@ class Film {
   std::vector<int> max_index_;  // per pixel: that sample's index
   std::vector<int> slot_of_;    // per pixel: its replicate slot or -1 (empty: no replicates)
   size_t grid_slots_ = 0;       // slots 0 .. grid_slots_ - 1 are the grid's
-  // Per replicate slot: the replicate's sum and brightest sample over the
-  // pixel's samples from start on (the same samples, scrambled independently),
-  // the pixel, start (the pixel's count when the slot was added; 0 on the
-  // grid) and the pixel's sum then.
-  std::vector<vec3> replicate_sum_, replicate_max_, replicate_start_sum_;
-  std::vector<int> replicate_pixel_, replicate_start_;
+  // Per slot: the pixel, its first stream, its number of streams and the
+  // samples each stream has. Per stream: the sum and the brightest sample.
+  std::vector<int> replicate_pixel_, replicate_first_, replicate_streams_, replicate_samples_;
+  std::vector<vec3> replicate_sum_, replicate_max_;
 };
 
 }  // namespace tessera

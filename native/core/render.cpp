@@ -41,9 +41,7 @@ void RenderSession::render_tile(int tile, PathCounters& counters) {
   for (int py = py0; py < py1; ++py) {
     for (int px = px0; px < px1; ++px) {
       const size_t i = size_t(py - y0_) * width() + (px - x0_);
-      if (!film_.active(i)) continue;
-      const int sample_begin = film_.count(i), sample_end = pass_end_[i];
-      if (sample_end <= sample_begin) continue;
+      const int sample_begin = film_.count(i), sample_end = film_.active(i) ? pass_end_[i] : sample_begin;
       for (int s = sample_begin; s < sample_end; ++s) {
         // Pixel coordinates are those of the full frame, so a region render
         // reproduces the full render's pixels exactly.
@@ -57,17 +55,22 @@ void RenderSession::render_tile(int tile, PathCounters& counters) {
           data_passes_.add(i, first);
         }
       }
-      // The error estimate's replicate (film.h): the same samples from an
-      // independently scrambled stream, kept apart from the image.
+      if (sample_end > sample_begin) film_.set_count(i, sample_end);
+      // The error estimate's replicates (film.h): the pixel's samples from
+      // independently scrambled streams, kept apart from the image, brought
+      // up to the pixel's count (a pixel followed from this pass on catches
+      // up from sample 0, whether or not it gets samples of its own now).
       const int slot = film_.replicate_slot(px - x0_, py - y0_);
-      if (slot >= 0) {
-        for (int s = sample_begin; s < sample_end; ++s) {
-          Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed + kReplicateSeed);
+      if (slot < 0) continue;
+      const int from = film_.replicate_samples(slot), to = film_.count(i);
+      if (to <= from) continue;
+      for (int k = 0; k < film_.replicate_streams(slot); ++k)
+        for (int s = from; s < to; ++s) {
+          Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed + uint32_t(k + 1) * kReplicateSeed);
           const Ray ray = camera_ray(px, py, sampler);
-          film_.add_replicate(slot, Li(scene_, ray, sampler, options_, counters, features_));
+          film_.add_replicate(slot, k, Li(scene_, ray, sampler, options_, counters, features_));
         }
-      }
-      film_.set_count(i, sample_end);
+      film_.set_replicate_samples(slot, to);
     }
   }
 }
