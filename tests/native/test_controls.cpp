@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <initializer_list>
 #include <tuple>
 
 #include "core/render.h"
@@ -39,6 +40,30 @@ double mean_rgb(const std::vector<float>& a) {
   for (size_t i = 0; i < a.size(); ++i)
     if (i % 4 != 3) m += a[i];
   return m / (a.size() / 4 * 3);
+}
+// A synthetic film rendered pass by pass as render_tile does it: each pixel
+// gets its samples image(i, s) up to the pass's end, then every stream k of
+// its replicate slot is brought up to that count with replicate(i, s, k);
+// after each pass between() (the estimate, as RenderSession::render calls it).
+template <typename Image, typename Replicate, typename Between>
+void render_passes(Film& film, int w, int h, std::initializer_list<int> passes, Image image, Replicate replicate,
+                   Between between) {
+  int done = 0;
+  for (int pass : passes) {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const size_t i = size_t(y) * w + x;
+        for (int s = done; s < done + pass; ++s) film.add(i, s, image(i, s));
+        film.set_count(i, done + pass);
+        const int slot = film.replicate_slot(x, y);
+        if (slot < 0) continue;
+        for (int k = 0; k < film.replicate_streams(slot); ++k)
+          for (int s = film.replicate_samples(slot); s < done + pass; ++s) film.add_replicate(slot, k, replicate(i, s, k));
+        film.set_replicate_samples(slot, done + pass);
+      }
+    done += pass;
+    between();
+  }
 }
 }  // namespace
 
@@ -387,24 +412,11 @@ TEST(Controls, ErrorEstimateFollowsBrightPixelsOffTheGrid) {
   auto run = [&](Film& film, bool follow) {
     film.resize(w, h, true);
     Rng image{987654321u}, replicate{12345u};
-    int done = 0;
     double estimate = 0.0;
-    for (int pass : {1, 1, 2, 4, 8, 16, 16, 16}) {
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          const size_t i = size_t(y) * w + x;
-          for (int s = done; s < done + pass; ++s) film.add(i, s, sample(i, image));
-          film.set_count(i, done + pass);
-          // As render_tile: every stream brought up to the pixel's count.
-          const int slot = film.replicate_slot(x, y);
-          if (slot < 0) continue;
-          for (int k = 0; k < film.replicate_streams(slot); ++k)
-            for (int s = film.replicate_samples(slot); s < done + pass; ++s) film.add_replicate(slot, k, sample(i, replicate));
-          film.set_replicate_samples(slot, done + pass);
-        }
-      done += pass;
-      estimate = follow ? film.estimated_relative_error() : film.estimated_relative_error(0.0);
-    }
+    render_passes(
+        film, w, h, {1, 1, 2, 4, 8, 16, 16, 16}, [&](size_t i, int) { return sample(i, image); },
+        [&](size_t i, int, int) { return sample(i, replicate); },
+        [&] { estimate = follow ? film.estimated_relative_error() : film.estimated_relative_error(0.0); });
     return estimate;
   };
   Film film, grid;
@@ -467,25 +479,15 @@ TEST(Controls, ErrorEstimateFollowsThisImagesErrorNotTheExpectedOne) {
   std::vector<float> image_phase(film.size());
   for (float& u : image_phase) u = phase();
   std::vector<std::vector<float>> stream_phase(film.size());
-  int done = 0;
   double estimate = 0.0;
-  for (int pass : {1, 1, 2, 4, 8, 16, 16, 16}) {
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const size_t i = size_t(y) * w + x;
-        for (int s = done; s < done + pass; ++s) film.add(i, s, stratified(i, s, image_phase[i], true, image));
-        film.set_count(i, done + pass);
-        const int slot = film.replicate_slot(x, y);
-        if (slot < 0) continue;
-        while (stream_phase[i].size() < size_t(film.replicate_streams(slot))) stream_phase[i].push_back(phase());
-        for (int k = 0; k < film.replicate_streams(slot); ++k)
-          for (int s = film.replicate_samples(slot); s < done + pass; ++s)
-            film.add_replicate(slot, k, stratified(i, s, stream_phase[i][size_t(k)], false, replicate));
-        film.set_replicate_samples(slot, done + pass);
-      }
-    done += pass;
-    estimate = film.estimated_relative_error();
-  }
+  render_passes(
+      film, w, h, {1, 1, 2, 4, 8, 16, 16, 16}, [&](size_t i, int s) { return stratified(i, s, image_phase[i], true, image); },
+      [&](size_t i, int s, int k) {
+        // Each stream's phase drawn when the stream first samples (streams start at sample 0).
+        while (stream_phase[i].size() <= size_t(k)) stream_phase[i].push_back(phase());
+        return stratified(i, s, stream_phase[i][size_t(k)], false, replicate);
+      },
+      [&] { estimate = film.estimated_relative_error(); });
   // This image's error, and what an image with its phases random and no
   // extra hits has on average (the stratified count's, (1/6) 299^2 / n^2 at
   // most: its fractional part's).
@@ -525,22 +527,10 @@ TEST(Controls, ErrorEstimateFollowsOnlyWhereTheBrightPixelsCarryTheError) {
       const bool bright = x % 7 == 3 && y % 7 == 3;
       return bright ? vec3(100.0f + bright_noise * (u() - 0.5f)) : vec3(1.0f + 2.0f * (u() - 0.5f));
     };
-    int done = 0;
-    for (int pass : {1, 1, 2, 4, 8}) {
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          const size_t i = size_t(y) * w + x;
-          for (int s = done; s < done + pass; ++s) film.add(i, s, sample(x, y));
-          film.set_count(i, done + pass);
-          const int slot = film.replicate_slot(x, y);
-          if (slot < 0) continue;
-          for (int k = 0; k < film.replicate_streams(slot); ++k)
-            for (int s = film.replicate_samples(slot); s < done + pass; ++s) film.add_replicate(slot, k, sample(x, y));
-          film.set_replicate_samples(slot, done + pass);
-        }
-      done += pass;
-      film.estimated_relative_error();
-    }
+    auto pixel_sample = [&](size_t i) { return sample(int(i % w), int(i / w)); };
+    render_passes(
+        film, w, h, {1, 1, 2, 4, 8}, [&](size_t i, int) { return pixel_sample(i); },
+        [&](size_t i, int, int) { return pixel_sample(i); }, [&] { film.estimated_relative_error(); });
     return film.replicate_count() - film.replicate_grid_size();
   };
   EXPECT_EQ(0u, run(1.0f));
