@@ -75,8 +75,16 @@ for name, t, c, s, tris in rows:
                  f"{s['rays_per_second'] / 1e6:.2f} |")
 lines += ["", "Command:", "", "```sh",
           "blender -b --factory-startup --python scripts/bench_render.py -- " + " ".join(argv), "```", ""]
+# The sections below this table ("## ...": the features study of
+# scripts/bench_features.py, notes) are kept when the table is regenerated.
+kept = ""
+if os.path.exists(args.out):
+    with open(args.out) as f:
+        old = f.read()
+    at = old.find("\n## ")
+    kept = old[at + 1:] if at >= 0 else ""
 with open(args.out, "w") as f:
-    f.write("\n".join(lines))
+    f.write("\n".join(lines) + ("\n" + kept if kept else ""))
 print("\n".join(lines))
 sys.stdout.flush()
 os._exit(0)
