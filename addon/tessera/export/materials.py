@@ -474,7 +474,8 @@ class _Flattener:
 def _side_params(material, report, backfacing, texture=None):
     params = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
                   transmission=0.0, emission_front=(0.0, 0.0, 0.0), model=MODEL)
-    if not material.use_nodes or material.node_tree is None:
+    # Blender 5.0 always uses a material's nodes (use_nodes is deprecated there, to go in 6.0).
+    if material.node_tree is None or (bpy.app.version < (5, 0, 0) and not material.use_nodes):
         params["base_color"] = tuple(material.diffuse_color)[:3]
         params["metallic"] = material.metallic
         params["roughness"] = material.roughness
