@@ -59,6 +59,11 @@ ap.add_argument("--adaptive-only", action="store_true",
 ap.add_argument("--adaptive-equal-samples", action="store_true",
                 help="also render each adaptive run's mean samples per pixel uniformly (same seed): "
                      "the comparison at equal samples, which machine load does not move")
+ap.add_argument("--adaptive-ladder-threshold", type=float, default=0.0,
+                help="also render the sample ladder with adaptive sampling on in both engines at this noise "
+                     "threshold (min samples automatic; the ladder's counts are the most a pixel gets), as users of "
+                     "both render (Cycles' defaults: 0.01 for final renders, 0.1 in the viewport; at 0.01 few pixels "
+                     "stop within 128 samples), and the efficiency at Cycles' adaptive 64-sample error; 0: not rendered")
 ap.add_argument("--ref-cache", default="",
                 help="with --adaptive-only: take Tessera's reference from this folder "
                      "(scripts/noise_at_equal_samples.py's cache, <scene>_TESSERA_<ref>_1000_<bounces>_<width>.npy) "
@@ -88,12 +93,13 @@ def load(path):
     return scene
 
 
-def run(path, eng, samples, bounces, seed=0, **tessera_settings):
+def run(path, eng, samples, bounces, seed=0, adaptive_threshold=None, **tessera_settings):
     scene = load(path)
     for k, v in tessera_settings.items():
         setattr(scene.tessera, k, v)
     t0 = time.perf_counter()
-    img = render(scene, eng, samples=samples, bounces=bounces, seed=seed)[..., :3].astype(np.float64)
+    img = render(scene, eng, samples=samples, bounces=bounces, seed=seed,
+                 adaptive_threshold=adaptive_threshold)[..., :3].astype(np.float64)
     wall = time.perf_counter() - t0
     st = dict(engine.last_render_stats) if eng == "TESSERA" else {}
     return img, wall, st
@@ -104,6 +110,22 @@ def metrics(img, ref):
     return {"rmse": float(np.sqrt(d2.mean())),
             "relmse": float((d2 / (ref ** 2 + 0.01)).mean()),
             "true_rel_error": float(np.sqrt(d2.mean()) / max(ref.mean(), 1e-12))}
+
+
+def efficiency_at(tessera_rows, cycles_row):
+    """Cycles' time for cycles_row over the time Tessera needs for the same MSE (own references): Tessera's
+    time interpolated in log MSE / log time between the two ladder points around that MSE (extrapolated
+    from the nearest pair outside the ladder)."""
+    if not cycles_row or len(tessera_rows) < 2:
+        return None
+    target = cycles_row["rmse_own"] ** 2
+    pts = sorted((r["rmse_own"] ** 2, r["seconds"]) for r in tessera_rows)
+    pair = next((p for p in zip(pts, pts[1:]) if p[0][0] <= target <= p[1][0] and p[1][0] > p[0][0]), None)
+    if pair is None:
+        pair = (pts[0], pts[1]) if target < pts[0][0] else (pts[-2], pts[-1])
+    (m1, t1), (m2, t2) = pair
+    f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
+    return cycles_row["seconds"] / math.exp(math.log(t1) + f * (math.log(t2) - math.log(t1)))
 
 
 rows = []
@@ -155,35 +177,30 @@ for path in args.scenes:
               f"other {row['rmse_other']:.5f}" + (f", est/true {row['est_over_true']:.2f}" if est else ""), flush=True)
         return row
 
-    ladder_rows = {e: [] for e in ENGINES}
-    for spp in ([] if args.adaptive_only else args.ladder):
-        runs = {e: [] for e in ENGINES}
-        for seed in range(args.runs):
-            for eng in ENGINES if seed % 2 == 0 else ENGINES[::-1]:  # alternate so machine load hits both alike
-                runs[eng].append(run(path, eng, spp, args.bounces, seed=seed))
-        for eng in ENGINES:
-            ladder_rows[eng].append(measured(eng, "samples", spp, args.bounces, runs[eng]))
+    def sample_ladder(label, adaptive_threshold=None):
+        ladder = {e: [] for e in ENGINES}
+        for spp in args.ladder:
+            runs = {e: [] for e in ENGINES}
+            for seed in range(args.runs):
+                for eng in ENGINES if seed % 2 == 0 else ENGINES[::-1]:  # alternate so machine load hits both alike
+                    runs[eng].append(run(path, eng, spp, args.bounces, seed=seed, adaptive_threshold=adaptive_threshold))
+            for eng in ENGINES:
+                ladder[eng].append(measured(eng, label, spp, args.bounces, runs[eng]))
+        return ladder
+
+    ladder_rows = {e: [] for e in ENGINES} if args.adaptive_only else sample_ladder("samples")
+    adaptive_ladder_rows = ({e: [] for e in ENGINES} if args.adaptive_only or not args.adaptive_ladder_threshold
+                            else sample_ladder("adaptive samples", args.adaptive_ladder_threshold))
     bounce_rows = {e: [] for e in ENGINES}
     for b in ([] if args.adaptive_only else args.bounce_ladder):
         for eng in ENGINES:
             bounce_rows[eng].append(measured(eng, "bounces", args.bounce_samples, b, [run(path, eng, args.bounce_samples, b)]))
 
     # Efficiency ratio at Cycles' 64-sample error (own references).
-    ratio = None
     c64 = next((r for r in ladder_rows["CYCLES"] if r["samples"] == 64), None)
-    if c64 and len(ladder_rows["TESSERA"]) > 1:
-        target = c64["rmse_own"] ** 2
-        pts = sorted((r["rmse_own"] ** 2, r["seconds"]) for r in ladder_rows["TESSERA"])
-        lt = None
-        for (m1, t1), (m2, t2) in zip(pts, pts[1:]):
-            if m1 <= target <= m2 and m2 > m1:
-                f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
-                lt = math.log(t1) + f * (math.log(t2) - math.log(t1))
-        if lt is None:  # outside the ladder: extrapolate from the nearest pair
-            (m1, t1), (m2, t2) = (pts[0], pts[1]) if target < pts[0][0] else (pts[-2], pts[-1])
-            f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
-            lt = math.log(t1) + f * (math.log(t2) - math.log(t1))
-        ratio = c64["seconds"] / math.exp(lt)
+    ratio = efficiency_at(ladder_rows["TESSERA"], c64)
+    c64_adaptive = next((r for r in adaptive_ladder_rows["CYCLES"] if r["samples"] == 64), None)
+    ratio_adaptive = efficiency_at(adaptive_ladder_rows["TESSERA"], c64_adaptive)
 
     # Adaptive against uniform, same time budget: the budget is the median
     # render time of 3 uniform renders at N samples; then per seed the methods
@@ -233,7 +250,8 @@ for path in args.scenes:
                     res[label]["equal_rays"] = float(np.median([(x[4] / x[2]) / (x[5] / x[3]) for x in e]))
                 adaptive.append((budget, res["uniform"], res[label], budget_spp, t))
 
-    summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive))
+    summary.append(dict(name=name, ladder=ladder_rows, bounces=bounce_rows, ratio=ratio, c64=c64, adaptive=adaptive,
+                        adaptive_ladder=adaptive_ladder_rows, ratio_adaptive=ratio_adaptive, c64_adaptive=c64_adaptive))
 
     try:
         if args.adaptive_only:
@@ -250,6 +268,10 @@ for path in args.scenes:
                            label=f"{eng.title()} vs other's reference")
             for r in rs:
                 axes[0].annotate(str(r["samples"]), (r["seconds"], r["rmse_own"]), fontsize=7)
+            ra = adaptive_ladder_rows[eng]
+            if ra:
+                axes[0].loglog([r["seconds"] for r in ra], [r["rmse_own"] for r in ra], "^:", color=color,
+                               label=f"{eng.title()} adaptive {args.adaptive_ladder_threshold} vs own reference")
             bs = bounce_rows[eng]
             axes[1].semilogy([r["bounces"] for r in bs], [r["rmse_own"] for r in bs], "o-", color=color,
                              label=f"{eng.title()} vs own reference")
@@ -308,6 +330,20 @@ for path in args.scenes:
         if s["c64"] and t64:
             lines.append(f"| {s['name']} | {s['c64']['rmse_own']:.5f} | {s['c64']['seconds']:.2f} | "
                          f"{s['ratio']:.2f} | {t64['rmse_own']:.5f} / {t64['rmse_other']:.5f} | {s['c64']['rmse_other']:.5f} |")
+    if args.adaptive_ladder_threshold:
+        lines += ["", f"### Both engines with adaptive sampling (noise threshold {args.adaptive_ladder_threshold})", "",
+                  "The same ladder with adaptive sampling on in both engines (min samples automatic; the ladder's "
+                  "count is the most samples a pixel gets), as users of both render. Same efficiency "
+                  "measure, at Cycles' adaptive 64-sample error. Mean samples: Tessera's, per pixel (Cycles does "
+                  "not report its own).", "",
+                  "| scene | Cycles RMSE | Cycles s | Tessera/Cycles efficiency | Tessera RMSE | Tessera s | Tessera mean spp |",
+                  "|---|---|---|---|---|---|---|"]
+        for s in summary:
+            t64 = next((r for r in s["adaptive_ladder"]["TESSERA"] if r["samples"] == 64), None)
+            if s["c64_adaptive"] and t64:
+                lines.append(f"| {s['name']} | {s['c64_adaptive']['rmse_own']:.5f} | {s['c64_adaptive']['seconds']:.2f} | "
+                             f"{s['ratio_adaptive']:.2f} | {t64['rmse_own']:.5f} | {t64['seconds']:.2f} | "
+                             f"{t64['mean_samples']:.1f} |")
     lines += ["", "## Tessera's error estimate against the true error", "",
               "Estimated relative RMSE (`Film::estimated_relative_error`) over the true relative RMSE (RMSE / mean of "
               "Tessera's reference, which adds the reference's own noise): the mean estimate over the seeds against "
@@ -341,7 +377,7 @@ for path in args.scenes:
               "| scene | engine | ladder | samples | bounces | runs | s (median; min-max) | RMSE own | relMSE own | RMSE vs other | 1/(MSE s) own |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in summary:
-        for part in ("ladder", "bounces"):
+        for part in ("ladder", "adaptive_ladder", "bounces"):
             for eng in ENGINES:
                 for r in s[part][eng]:
                     spread = f"; {r['seconds_min']:.2f}-{r['seconds_max']:.2f}" if r.get("runs", 1) > 1 else ""

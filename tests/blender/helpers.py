@@ -39,10 +39,12 @@ def set_size(scene, width, height=None):
     r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
 
 
-def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0):
+def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0, adaptive_threshold=None):
     """Sets the engine and the settings both engines share (samples, bounces,
-    seed, threads); Cycles without denoising, adaptive sampling, clamping or
-    glossy blur, so that both estimate the same image."""
+    seed, threads); Cycles without denoising, clamping or glossy blur, so that
+    both estimate the same image. Adaptive sampling: Cycles' is off unless
+    adaptive_threshold > 0 is given, which both engines then use (min samples
+    automatic); None leaves Tessera's own setting as it is."""
     r = scene.render
     r.engine = engine
     if engine == 'CYCLES':
@@ -53,7 +55,10 @@ def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0):
             setattr(scene.cycles, f"{kind}_bounces", max(bounces, 1))
         scene.cycles.volume_bounces = 0
         scene.cycles.use_denoising = False
-        scene.cycles.use_adaptive_sampling = False
+        scene.cycles.use_adaptive_sampling = bool(adaptive_threshold)
+        if adaptive_threshold:
+            scene.cycles.adaptive_threshold = adaptive_threshold
+            scene.cycles.adaptive_min_samples = 0
         scene.cycles.seed = seed
         scene.cycles.sample_clamp_direct = 0.0
         scene.cycles.sample_clamp_indirect = 0.0
@@ -66,11 +71,13 @@ def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0):
     else:
         t = scene.tessera
         t.samples, t.max_bounces, t.seed, t.threads = samples, bounces, seed, threads
+        if adaptive_threshold is not None:
+            t.adaptive_threshold, t.adaptive_min_samples = adaptive_threshold, 0
 
 
-def render(scene, engine, samples=64, bounces=8, seed=0, threads=0):
+def render(scene, engine, samples=64, bounces=8, seed=0, threads=0, adaptive_threshold=None):
     """Renders the scene's camera view; returns float32 (H, W, 4), rows top to bottom."""
-    configure_engine(scene, engine, samples, bounces, seed, threads)
+    configure_engine(scene, engine, samples, bounces, seed, threads, adaptive_threshold)
     r = scene.render
     r.image_settings.file_format = 'OPEN_EXR'
     r.image_settings.color_depth = '32'
