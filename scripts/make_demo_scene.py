@@ -19,7 +19,8 @@ scene = bpy.context.scene
 
 def material(name, color, metallic=0.0, roughness=0.5, specular=0.5, transmission=0.0, emission=None):
     m = bpy.data.materials.new(name)
-    m.use_nodes = True
+    if bpy.app.version < (5, 0, 0):  # 5.0 always uses nodes; use_nodes is deprecated there
+        m.use_nodes = True
     p = m.node_tree.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (*color, 1.0)
     p.inputs["Metallic"].default_value = metallic
@@ -97,7 +98,8 @@ add(bpy.context.object, panel)
 
 # World and camera.
 world = bpy.data.worlds.new("World")
-world.use_nodes = True
+if bpy.app.version < (5, 0, 0):
+    world.use_nodes = True
 world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.06, 0.08, 1.0)
 scene.world = world
 bpy.ops.object.camera_add(location=(0, -7.5, 2.2), rotation=(math.radians(82), 0, 0))

@@ -14,9 +14,16 @@ def empty_scene():
     return scene
 
 
+def with_nodes(idblock):
+    """A new material or world with its node tree: use_nodes before Blender 5.0; 5.0 always uses nodes
+    (use_nodes is deprecated there and goes in 6.0), and new ones come with their default nodes."""
+    if bpy.app.version < (5, 0, 0):
+        idblock.use_nodes = True
+    return idblock
+
+
 def principled(name, color=(0.8, 0.8, 0.8), **inputs):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
+    m = with_nodes(bpy.data.materials.new(name))
     p = m.node_tree.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (*color, 1.0)
     for k, v in inputs.items():
@@ -46,8 +53,7 @@ def add_camera(scene, location=(0, 0, 5), rotation=(0, 0, 0), lens=50.0, kind='P
 
 
 def set_world(scene, color=(0.0, 0.0, 0.0), strength=1.0):
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
+    world = with_nodes(bpy.data.worlds.new("World"))
     bg = world.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (*color, 1.0)
     bg.inputs["Strength"].default_value = strength

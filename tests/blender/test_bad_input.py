@@ -12,7 +12,7 @@ import pytest
 
 import tessera.engine
 from helpers import blender_render_frame, render
-from scenes import add_camera, add_plane, empty_scene, principled, set_world
+from scenes import add_camera, add_plane, empty_scene, principled, set_world, with_nodes
 
 def lit_scene():
     """A grey plane filling the view under a white world, and a second,
@@ -133,8 +133,7 @@ def test_missing_image_file_names_the_image_and_renders_pink():
 
 def test_unsupported_shader_node_is_named_once_and_approximated():
     scene = lit_scene()
-    mat = bpy.data.materials.new("Toony")
-    mat.use_nodes = True
+    mat = with_nodes(bpy.data.materials.new("Toony"))
     nodes = mat.node_tree.nodes
     nodes.remove(nodes["Principled BSDF"])
     toon = nodes.new('ShaderNodeBsdfToon')

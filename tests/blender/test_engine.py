@@ -70,7 +70,8 @@ engine.TesseraRenderEngine._render = spy_render
 engine.TesseraRenderEngine._write = staticmethod(spy_write)
 bpy.context.scene.render.engine = 'TESSERA'
 m = bpy.data.materials.new("Red")
-m.use_nodes = True
+if bpy.app.version < (5, 0, 0):  # 5.0 always uses nodes; use_nodes is deprecated there
+    m.use_nodes = True
 m.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.05, 0.05, 1.0)
 with bpy.context.temp_override(id=m):
     bpy.ops.ed.lib_id_generate_preview()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from helpers import compare, downsample, render
-from scenes import add_camera, add_plane, empty_scene, principled, set_world
+from scenes import add_camera, add_plane, empty_scene, principled, set_world, with_nodes
 
 
 def textured_plane_scene(interpolation='Linear', extension='REPEAT', scale=1.0):
@@ -114,8 +114,7 @@ def _both(scene, samples, bounces=4, size=96):
 
 def _shader_material(name, build):
     """A material whose Surface is what build(nodes, links) returns (an output socket)."""
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
+    m = with_nodes(bpy.data.materials.new(name))
     nodes, links = m.node_tree.nodes, m.node_tree.links
     for n in list(nodes):
         if n.type != 'OUTPUT_MATERIAL':
