@@ -178,6 +178,36 @@ TEST(LightSampling, FarTriangleLightsAreSampledByAreaWithTheirOwnDensity) {
   EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
 }
 
+// Between close (solid angle) and far (area sampling, below the solid-angle
+// threshold): from two bounding-sphere radii of a triangle on, lights.cpp
+// samples it by area, where the 1/distance^2 of the weights varies by at
+// most 4x over the light. Across that switch the irradiance stays exact,
+// sample() and pdf_triangle() report the same density (checked inside
+// irradiance_by_light_sampling), and the weights' spread stays small:
+// bounded by the cosines and the 4x, not by 1/d^2 of a close light.
+TEST(LightSampling, TriangleLightSamplingSwitchesToAreaFromTwoRadiiWithBoundedWeights) {
+  const LightSampler lights = quad_light();
+  // The quad's triangles have bounding-sphere radius 0.745 about their
+  // centroids: area sampling from 2.24 from a centroid.
+  // Above the light, and just above its plane beside it, where the light is
+  // seen at grazing angles and area sampling's weights spread the most.
+  std::vector<vec3> points;
+  for (float h : {1.0f, 1.8f, 2.2f, 2.6f, 3.5f})
+    for (vec2 xy : {vec2(0.0f), vec2(0.9f, 0.3f), vec2(-1.5f, 0.8f)}) points.push_back(vec3(xy, h));
+  for (float x : {1.2f, 1.5f, 2.0f, 2.5f, 3.5f}) points.push_back(vec3(x, 0.2f, 0.05f));
+  for (const vec3& p : points) {
+    {
+      const vec3 n = glm::normalize(-p);
+      const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 14);
+      const double exact = polygon_irradiance(quad(), p, n);
+      const std::string at = "at " + std::to_string(p.x) + " " + std::to_string(p.y) + " " + std::to_string(p.z);
+      EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << at;
+      EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 14)) / e.mean, 1.0) << at;
+      EXPECT_LT(e.max_weight / e.mean, 4.0) << at;
+    }
+  }
+}
+
 // A point on the light itself lies in its plane: its corners are then on one
 // great circle, the solid angle is 0 or 2 pi by rounding, and Arvo's
 // construction has nothing to work with. Such points must get nothing from
