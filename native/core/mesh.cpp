@@ -1,5 +1,6 @@
 #include "mesh.h"
 
+#include <algorithm>
 #include <atomic>
 
 #include <tbb/parallel_for.h>
@@ -130,6 +131,9 @@ Mesh prepare_mesh(const MeshInput& in) {
     }
     degenerate += block_degenerate;
   });
+  // Reserved at its size: Scene::memory_bytes counts capacity, and growing
+  // by push_back kept up to twice what is used (~4 bytes per triangle).
+  mesh.prim_ids.reserve(size_t(std::count(keep.begin(), keep.end(), uint8_t(1))));
   for (uint32_t i = 0; i < nt; ++i)
     if (keep[i]) mesh.prim_ids.push_back(i);
   const size_t kept = mesh.prim_ids.size();
