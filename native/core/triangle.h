@@ -32,6 +32,9 @@ struct RayShear {
     sy = dv[ky] / dv[kz];
     sz = 1.0f / dv[kz];
   }
+  // From its parts (the SIMD tests' fallback, which holds them broadcast).
+  RayShear(int kx_, int ky_, int kz_, float sx_, float sy_, float sz_)
+      : kx(kx_), ky(ky_), kz(kz_), sx(sx_), sy(sy_), sz(sz_) {}
 };
 
 struct TriangleHit {
@@ -39,9 +42,17 @@ struct TriangleHit {
 };
 
 // Conservative bound on the rounding error of the computed t (pbrt-v4,
-// 6.8.5, from the sheared vertices and the edge functions). A hit nearer than
-// that may be the very surface the ray leaves, so it is not a hit: together
-// with offset_ray_origin this keeps rays from re-hitting their own surface.
+// 6.8.5, from the sheared vertices and the edge functions). A float t above
+// it is certainly positive. One not above it may be the very surface the ray
+// leaves, or a real hit that float cannot certify: the bound's main term,
+// the edge functions' error times the largest |z| of the triangle over det,
+// is large on long thin triangles (modern_hall's 8.8 m x 6 mm ceiling strip,
+// hit at t = 0.077: bound 0.11; the float t itself was within 4e-6), and
+// those are recomputed in double by refine_triangle_t. A float t <= 0 stays a
+// miss without that look: a real hit there is nearer than the float t's own
+// rounding error (no ray of the interior benchmark that disagrees with Embree
+// is one), and looking would put every ray's own triangle (float t just
+// below 0) through the bound.
 inline float triangle_t_error(float ax, float ay, float az, float bx, float by, float bz, float cx, float cy, float cz,
                               float max_z_raw, float sx, float sy, float u, float v, float w, float inv_det) {
   const float max_xt = std::max(std::abs(ax), std::max(std::abs(bx), std::abs(cx)));
@@ -57,6 +68,14 @@ inline float triangle_t_error(float ax, float ay, float az, float bx, float by, 
   const float max_e = std::max(std::abs(u), std::max(std::abs(v), std::abs(w)));
   return 3.0f * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * std::abs(inv_det);
 }
+
+// The ray's distance to the plane of (p0, p1, p2) in double, from the same
+// sheared construction (triangle.cpp, with its error bounds): true, and t set
+// to it rounded to float, when it is certainly positive and below tmax. The
+// fallback of intersect_triangle and intersect_tri4 for a float t within its
+// error bound; out of line, one compiled copy for every path (same bits).
+bool refine_triangle_t(const vec3& p0, const vec3& p1, const vec3& p2, const vec3& o, const RayShear& s, float tmax,
+                       float& t);
 
 // Returns true and fills hit if the ray hits triangle (p0, p1, p2) at
 // 0 < t < tmax. Edges count as inside (watertight, no gaps).
@@ -87,9 +106,12 @@ inline bool intersect_triangle(const vec3& p0, const vec3& p1, const vec3& p2, c
   hit.t = t_scaled * inv_det;
   hit.u = v * inv_det;
   hit.v = w * inv_det;
-    const float max_z_raw = std::max(std::abs(a[s.kz]), std::max(std::abs(b[s.kz]), std::abs(c[s.kz])));
-  return hit.t > triangle_t_error(ax, ay, az, bx, by, bz, cx, cy, cz, max_z_raw, s.sx, s.sy, u, v, w, inv_det) &&
-         hit.t < tmax;
+  const float max_z_raw = std::max(std::abs(a[s.kz]), std::max(std::abs(b[s.kz]), std::abs(c[s.kz])));
+  if (hit.t > triangle_t_error(ax, ay, az, bx, by, bz, cx, cy, cz, max_z_raw, s.sx, s.sy, u, v, w, inv_det))
+    return hit.t < tmax;
+  // Positive in float but within its error bound: decide in double (the edge
+  // functions above still decide inside/outside; u and v stay theirs).
+  return refine_triangle_t(p0, p1, p2, o, s, tmax, hit.t);
 }
 
 }  // namespace tessera
