@@ -9,6 +9,8 @@
 #                             [--size WxH] [--samples N] [--addon DIR] [--stagger SECONDS]
 #
 # Frames are written as OUTDIR/frame_####.<ext> in the file's output format.
+# With --addon DIR the workers start with --factory-startup and register DIR's
+# add-on (one installed in the user preferences is not loaded).
 # Exit status 0 only when every worker exited 0, no worker printed a Python
 # traceback, and every frame START..END exists as a non-empty file; empty
 # placeholders left by a failed worker are removed (so a rerun renders them)
@@ -60,10 +62,15 @@ if '$end':
 print('FARM_RANGE', scene.frame_start, scene.frame_end, r.image_settings.file_format, flush=True)
 "
 
+# With --addon, the workers skip the user preferences: an add-on enabled there
+# (another Tessera, or a dangling link to one) would otherwise be loaded
+# instead of --addon's, or fail the worker with its traceback.
+prefs=()
+[ -n "$addon" ] && prefs=(--factory-startup)
 pids=()
 for ((i = 0; i < workers; i++)); do
   ((i > 0)) && sleep "$stagger"  # workers that start together race for the first frame's placeholder
-  "$BLENDER" -b "$blend" --python-expr "$setup" -E TESSERA -o "$out/frame_####" -a \
+  "$BLENDER" -b "${prefs[@]}" "$blend" --python-expr "$setup" -E TESSERA -o "$out/frame_####" -a \
     >"$out/.farm_logs/worker_$i.log" 2>&1 &
   pids+=($!)
 done

@@ -47,8 +47,9 @@ def common_args(p):
     p.add_argument("--samples", type=int)
     p.add_argument("--seed", type=int)
     p.add_argument("--threads", type=int)
-    p.add_argument("--addon", help="folder holding the tessera package, registered from there "
-                                   "(default: the add-on installed in Blender's preferences)")
+    p.add_argument("--addon", help="folder holding the tessera package, registered from there in Blenders "
+                                   "started with --factory-startup (default: the add-on installed in Blender's "
+                                   "preferences)")
 
 
 # ---------------------------------------------------------------- inside Blender
@@ -184,6 +185,9 @@ def main(argv=None):
             passthrough += [f"--{name}", str(os.path.abspath(v) if name == "addon" else v)]
     if a.no_crop:
         passthrough.append("--no-crop")
+    # With --addon, the Blenders skip the user preferences: an add-on enabled there (another Tessera, or a
+    # dangling link to one) would otherwise be loaded instead of DIR's, or fail every tile with its traceback.
+    prefs = ["--factory-startup"] if a.addon else []
 
     tiles = [(ix, iy) for iy in range(ny) for ix in range(nx)]
     pending, running, failures = list(tiles), [], []
@@ -194,7 +198,7 @@ def main(argv=None):
             ix, iy = pending.pop(0)
             # Options are applied in order: --python (border, overrides), -E, -o, then -f renders.
             out_base = os.path.join(work, f"tile_{ix}_{iy}_")
-            cmd = [a.blender, "-b", blend, "--python", HERE, "-E", "TESSERA",
+            cmd = [a.blender, "-b", *prefs, blend, "--python", HERE, "-E", "TESSERA",
                    "-o", out_base + "####", "-f", str(a.frame),
                    "--", "--tile-setup", f"{ix},{iy},{nx},{ny}", *passthrough]
             log = os.path.join(work, f"tile_{ix}_{iy}.log")
@@ -219,7 +223,7 @@ def main(argv=None):
               file=sys.stderr)
         return 1
     log = os.path.join(work, "stitch.log")
-    cmd = [a.blender, "-b", blend, "--python", HERE, "--",
+    cmd = [a.blender, "-b", *prefs, blend, "--python", HERE, "--",
            "--stitch", output, "--grid", f"{nx},{ny}", "--tile-dir", work, *passthrough]
     proc = run(cmd, log)
     bad, text = failed(proc.wait(), log)

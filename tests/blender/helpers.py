@@ -17,11 +17,11 @@ ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "ad
 def blender_render_frame(blend, out_dir):
     """Renders frame 1 of a saved .blend with Tessera in a separate `blender -b`
     process, as a farm worker would (PNG files out_dir/f_####); returns the
-    CompletedProcess. Registers this checkout's add-on unless Blender already
-    has Tessera enabled (scripts/setup.sh enables it in the user preferences)."""
-    expr = (f"import sys, bpy; sys.path.insert(0, {ADDON!r}); import tessera; "
-            f"hasattr(bpy.types.Scene, 'tessera') or tessera.register()")
-    return subprocess.run([bpy.app.binary_path, "-b", str(blend), "--python-expr", expr, "-E", "TESSERA",
+    CompletedProcess. Renders with this checkout's add-on: the process skips
+    the user preferences (--factory-startup), where another Tessera may be
+    installed."""
+    expr = f"import sys; sys.path.insert(0, {ADDON!r}); import tessera; tessera.register()"
+    return subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", str(blend), "--python-expr", expr, "-E", "TESSERA",
                            "-o", os.path.join(str(out_dir), "f_####"), "-F", "PNG", "-f", "1"],
                           capture_output=True, text=True, timeout=300)
 

@@ -36,11 +36,11 @@ def python():
 
 
 
-def region_render(tmp_path, name, *args):
+def region_render(tmp_path, name, *args, env=None):
     out = str(tmp_path / name)
     proc = subprocess.run([python(), REGION, os.path.join(SCENES, "cornell_mcguire.blend"), out,
                            "--size", "37x29", "--samples", "3", "--seed", "7", "--addon", ADDON, *args],
-                          env=blender_env(), capture_output=True, text=True, timeout=600)
+                          env=env or blender_env(), capture_output=True, text=True, timeout=600)
     print(proc.stdout, proc.stderr)
     return proc, out
 
@@ -56,6 +56,35 @@ def test_four_region_renders_stitch_to_the_full_render(tmp_path):
     assert a.shape == b.shape == (29, 37, 4)
     assert a[..., :3].mean() > 0.01, "the reference render is black"
     assert np.array_equal(a, b), f"stitched differs from the full render in {np.count_nonzero(a != b)} values"
+
+
+def broken_installed_addon_env(tmp_path):
+    """Blender's user folders with Tessera enabled in the preferences, its add-on link then left dangling (a
+    checkout moved or deleted since it was installed): every `blender -b` that reads the preferences prints a
+    traceback for it."""
+    scripts, config = tmp_path / "user_scripts", tmp_path / "user_config"
+    (scripts / "addons").mkdir(parents=True)
+    config.mkdir()
+    link = scripts / "addons" / "tessera"
+    link.symlink_to(os.path.join(ADDON, "tessera"))
+    env = dict(blender_env(), BLENDER_USER_SCRIPTS=str(scripts), BLENDER_USER_CONFIG=str(config))
+    subprocess.run([bpy.app.binary_path, "-b", "--python-expr",
+                    "import bpy; bpy.ops.preferences.addon_enable(module='tessera'); bpy.ops.wm.save_userpref()"],
+                   env=env, capture_output=True, text=True, timeout=300, check=True)
+    assert (config / "userpref.blend").exists()
+    link.unlink()
+    link.symlink_to(str(tmp_path / "moved_checkout" / "tessera"))
+    return env
+
+
+def test_addon_option_renders_with_that_addon_whatever_blender_has_installed(tmp_path):
+    """--addon DIR renders with DIR's add-on: the farm's Blenders skip the user preferences (--factory-startup),
+    so an add-on installed there (another Tessera, or a dangling link to one) neither replaces it nor fails the
+    tiles with its traceback."""
+    env = broken_installed_addon_env(tmp_path)
+    proc, out = region_render(tmp_path, "tiled.exr", "--tiles", "2x1", env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert load_image(out)[..., :3].mean() > 0.01
 
 
 def test_uncropped_region_renders_stitch_to_the_full_render(tmp_path):
