@@ -56,6 +56,19 @@ void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& options) {
   }
 }
 
+// Triangle boxes for a build, from the BVH allocator (memory of an earlier
+// build, no fresh pages to fault in: bvh_memory.cpp) and left unwritten:
+// the caller constructs each box once, in parallel.
+struct Boxes {
+  size_t bytes;
+  AABB* p;
+  explicit Boxes(size_t n) : bytes(std::max<size_t>(n, 1) * sizeof(AABB)), p(static_cast<AABB*>(bvh_alloc_bytes(bytes))) {}
+  ~Boxes() { bvh_free_bytes(p, bytes); }
+  Boxes(const Boxes&) = delete;
+  Boxes& operator=(const Boxes&) = delete;
+};
+static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
+
 // Per-triangle attributes stay in Blender's order (indexed by prim_ids).
 void copy_attributes(Mesh& mesh, const MeshInput& in) {
   const size_t nt = in.num_triangles;
@@ -77,12 +90,7 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   mesh.num_input_triangles = nt;
   // Triangle boxes, written once each in parallel (no serial construction
   // of the array first); invalid triangles get an empty box and are skipped.
-  struct Boxes {
-    AABB* p;
-    explicit Boxes(size_t n) : p(static_cast<AABB*>(::operator new(std::max<size_t>(n, 1) * sizeof(AABB)))) {}
-    ~Boxes() { ::operator delete(p); }
-  } boxes(nt);
-  static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
+  Boxes boxes(nt);
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
   std::atomic<size_t> degenerate{0};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -101,6 +109,9 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   const size_t kept = binary.prim_order.size();
   mesh.num_degenerate_triangles = degenerate.load();
   mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
+  // Unwritten by resize (BVHArray; zeroing them was a serial pass over 36
+  // bytes per triangle): each vertex is written once, in parallel.
+  static_assert(std::is_trivially_default_constructible<vec3>::value, "resize must not write the vertices");
   mesh.tri_verts.resize(3 * kept);
   mesh.prim_ids = std::move(binary.prim_order);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, kept, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -149,20 +160,28 @@ Mesh prepare_mesh(const MeshInput& in) {
 void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
   if (mesh.has_bvh() || mesh.prim_ids.empty()) return;
   const size_t n = mesh.prim_ids.size();
-  std::vector<AABB> boxes(n);
+  Boxes boxes(n);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i)
-      for (int k = 0; k < 3; ++k) boxes[i].grow(mesh.tri_verts[3 * i + k]);
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      AABB box;
+      for (int k = 0; k < 3; ++k) box.grow(mesh.tri_verts[3 * i + k]);
+      new (&boxes.p[i]) AABB(box);
+    }
   });
-  BVH binary = build_bvh(boxes.data(), n, tri4_leaf_options(options));
-  // Leaf order: binary.prim_order indexes the prepared order.
-  std::vector<vec3> verts(3 * binary.prim_order.size());
-  std::vector<uint32_t> ids(binary.prim_order.size());
-  for (size_t i = 0; i < ids.size(); ++i) {
-    const uint32_t j = binary.prim_order[i];
-    ids[i] = mesh.prim_ids[j];
-    for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
-  }
+  BVH binary = build_bvh(boxes.p, n, tri4_leaf_options(options));
+  // Leaf order: binary.prim_order indexes the prepared order (copied in
+  // parallel, as build_mesh does).
+  const size_t kept = binary.prim_order.size();
+  BVHArray<vec3> verts;
+  verts.resize(3 * kept);
+  std::vector<uint32_t> ids(kept);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, kept, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t j = binary.prim_order[i];
+      ids[i] = mesh.prim_ids[j];
+      for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
+    }
+  });
   mesh.tri_verts.swap(verts);
   mesh.prim_ids.swap(ids);
   attach_tree(mesh, binary, options);
