@@ -130,28 +130,48 @@ Mesh prepare_mesh(const MeshInput& in) {
   const size_t nt = in.num_triangles;
   mesh.num_input_triangles = nt;
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
-  std::vector<uint8_t> keep(nt, 0);
-  std::atomic<size_t> degenerate{0};
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    size_t block_degenerate = 0;
-    for (size_t i = r.begin(); i < r.end(); ++i) {
+  // Two parallel passes over fixed blocks of triangles (the same result for
+  // any thread count): the checks, counting each block's kept triangles;
+  // then each block writes its kept ones, in input order, at the offset the
+  // blocks before it give (a prefix sum), and bounds them.
+  constexpr size_t kBlock = 4096;
+  const size_t nblocks = (nt + kBlock - 1) / kBlock;
+  struct Block {
+    size_t kept = 0, degenerate = 0, offset = 0;
+    AABB bounds;
+  };
+  std::vector<Block> blocks(nblocks);
+  std::vector<uint8_t> keep(nt);
+  tbb::parallel_for(size_t(0), nblocks, [&](size_t b) {
+    Block& blk = blocks[b];
+    for (size_t i = b * kBlock, e = std::min(nt, i + kBlock); i < e; ++i) {
       const TriangleCheck check = check_triangle(in, i);
       keep[i] = check == TriangleCheck::Kept;
-      block_degenerate += check == TriangleCheck::Degenerate;
+      blk.kept += keep[i];
+      blk.degenerate += check == TriangleCheck::Degenerate;
     }
-    degenerate += block_degenerate;
   });
-  for (uint32_t i = 0; i < nt; ++i)
-    if (keep[i]) mesh.prim_ids.push_back(i);
-  const size_t kept = mesh.prim_ids.size();
-  mesh.num_degenerate_triangles = degenerate.load();
-  mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
+  size_t kept = 0, degenerate = 0;
+  for (Block& blk : blocks) blk.offset = kept, kept += blk.kept, degenerate += blk.degenerate;
+  mesh.num_degenerate_triangles = degenerate;
+  mesh.num_skipped_triangles = nt - kept - degenerate;
+  mesh.prim_ids.resize(kept);
   mesh.tri_verts.resize(3 * kept);
+  tbb::parallel_for(size_t(0), nblocks, [&](size_t b) {
+    Block& blk = blocks[b];
+    size_t o = blk.offset;
+    AABB box;
+    for (size_t i = b * kBlock, e = std::min(nt, i + kBlock); i < e; ++i) {
+      if (!keep[i]) continue;
+      mesh.prim_ids[o] = uint32_t(i);
+      const uint32_t* idx = in.indices + 3 * i;
+      for (int k = 0; k < 3; ++k) box.grow(mesh.tri_verts[3 * o + k] = pos[idx[k]]);
+      ++o;
+    }
+    blk.bounds = box;
+  });
   AABB bounds;
-  for (size_t i = 0; i < kept; ++i) {
-    const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
-    for (int k = 0; k < 3; ++k) bounds.grow(mesh.tri_verts[3 * i + k] = pos[idx[k]]);
-  }
+  for (const Block& blk : blocks) bounds.grow(blk.bounds);
   mesh.bvh.bounds = bounds;  // Mesh::bounds() without a tree
   copy_attributes(mesh, in);
   return mesh;
