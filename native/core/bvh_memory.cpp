@@ -1,6 +1,7 @@
-// Memory of the BVH builds' large arrays (LargePageAllocator, bvh.h): 2 MB
-// aligned mappings from the kernel, marked MADV_HUGEPAGE before first touch,
-// and freed ones kept mapped for the next build.
+// Memory of the BVH builds' large arrays (LargePageAllocator, bvh.h):
+// mappings from the kernel (from 2 MB on 2 MB aligned and marked
+// MADV_HUGEPAGE before first touch), and freed ones kept mapped for the next
+// build.
 #include "bvh.h"
 
 #include <sys/mman.h>
