@@ -6,7 +6,6 @@
 #include <tbb/parallel_reduce.h>
 #include <tbb/combinable.h>
 #include <emmintrin.h>
-#include <sys/mman.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -19,49 +18,6 @@
 #include <stdexcept>
 
 namespace tessera {
-
-constexpr size_t kLargePage = size_t(2) << 20;
-
-// Arrays of at least one large page start on a 2 MB boundary and have their
-// whole large pages marked MADV_HUGEPAGE before first touch; the tail stays
-// in small pages, so no memory is wasted. They are mapped from the kernel,
-// not taken from the heap: once glibc has freed blocks of that size (a
-// previous scene's arrays, Blender's own) its mmap threshold grows and it
-// serves them from heap memory that was touched before, which keeps its
-// small pages whatever madvise says. A build over such memory ran 1.3x as
-// long (ogre after nefertiti in bench_bvh --mode compare) and its tree is
-// walked with the TLB missing more.
-static size_t large_page_round(size_t bytes) { return (bytes + kLargePage - 1) & ~(kLargePage - 1); }
-
-void* bvh_alloc_bytes(size_t bytes) {
-  if (bytes < kLargePage) return ::operator new(bytes, std::align_val_t(64));
-#if defined(__linux__)
-  // Over-map by one large page, then unmap what lies outside the aligned range.
-  const size_t size = large_page_round(bytes);
-  void* raw = mmap(nullptr, size + kLargePage, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-  if (raw == MAP_FAILED) throw std::bad_alloc();
-  const uintptr_t begin = uintptr_t(raw), aligned = (begin + kLargePage - 1) & ~uintptr_t(kLargePage - 1);
-  if (aligned > begin) munmap(raw, aligned - begin);
-  if (begin + kLargePage > aligned) munmap(reinterpret_cast<void*>(aligned + size), begin + kLargePage - aligned);
-  void* p = reinterpret_cast<void*>(aligned);
-#else
-  void* p = std::aligned_alloc(kLargePage, large_page_round(bytes));
-  if (!p) throw std::bad_alloc();
-#endif
-#ifdef MADV_HUGEPAGE
-  madvise(p, bytes & ~(kLargePage - 1), MADV_HUGEPAGE);
-#endif
-  return p;
-}
-
-void bvh_free_bytes(void* p, size_t bytes) {
-  if (bytes < kLargePage) ::operator delete(p, std::align_val_t(64));
-#if defined(__linux__)
-  else munmap(p, large_page_round(bytes));
-#else
-  else std::free(p);
-#endif
-}
 
 namespace {
 
@@ -305,13 +261,13 @@ inline __m128 half_areas3(const SSEBox* b) {
 
 struct FastBuilder {
   const BuildOptions& opt;
-  std::unique_ptr<PrimRef[]> refs;  // uninitialised: every one is written before it is read
+  BVHArray<PrimRef> refs;  // unwritten by resize: every one is written before it is read
   uint32_t num_refs = 0;
   // The other buffer of the parallel partitions, allocated once per build
   // (uninitialised): a parallel partition scatters a range from one buffer
   // into the other (no copy back), so a subtree's range lives in buf[side];
   // concurrent partitions work on disjoint [begin, end).
-  std::unique_ptr<PrimRef[]> scratch;
+  BVHArray<PrimRef> scratch;
   PrimRef* buf[2] = {nullptr, nullptr};
   uint32_t* prim_order = nullptr;  // written by the leaves, from their references
   BVHArray<BVHNode> nodes;
@@ -451,8 +407,13 @@ struct FastBuilder {
   }
 
   static constexpr int kMaxSAHDepth = 32;
-  static constexpr uint32_t kParallelPartition = 65536;
-  static constexpr uint32_t kPartitionBlock = 16384;
+  // Ranges over kParallelPartition references bin and partition in parallel,
+  // in blocks of kPartitionBlock. From 16,384 (was 65,536, blocks of 16,384)
+  // the root of a small mesh is split in parallel too: modern_hall's 31,247
+  // triangles were binned and partitioned at the root on one thread, and
+  // its two-thread build scaled 1.75x where Embree's scales 2x.
+  static constexpr uint32_t kParallelPartition = 16384;
+  static constexpr uint32_t kPartitionBlock = 4096;
 
   // Stable partition of a large range in parallel (the top levels, where the
   // serial in-place partition would leave the other threads idle) in one
@@ -679,10 +640,10 @@ BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOpti
   };
   BVH bvh;
   if (num_prims == 0) return bvh;
-  b.refs.reset(new PrimRef[num_prims]);
+  b.refs.resize(num_prims);
   for_blocks([&](size_t k) {
     RefBlock& blk = blocks[k];
-    PrimRef* const start = b.refs.get() + k * kRefBlock;
+    PrimRef* const start = b.refs.data() + k * kRefBlock;
     PrimRef* out = start;
     SSEBox bx, cb;  // locals: kept in registers
     const __m128 zero = _mm_setzero_ps();
@@ -708,22 +669,22 @@ BVH build_binned_fast(const AABB* prim_bounds, size_t num_prims, const BuildOpti
   for (RefBlock& blk : blocks) blk.offset = total, total += blk.count;
   if (total == 0) return bvh;
   b.num_refs = total;
-  if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.reset(new PrimRef[total]);
+  if (options.parallel && total > FastBuilder::kParallelPartition) b.scratch.resize(total);
   if (total != num_prims) {
-    if (b.scratch) {
+    if (!b.scratch.empty()) {
       for_blocks([&](size_t k) {
-        std::memcpy(b.scratch.get() + blocks[k].offset, b.refs.get() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
+        std::memcpy(b.scratch.data() + blocks[k].offset, b.refs.data() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
       });
       std::swap(b.refs, b.scratch);
     } else {
       for (size_t k = 0; k < nblocks; ++k)  // offsets never pass their block's start: in order, in place
-        std::memmove(b.refs.get() + blocks[k].offset, b.refs.get() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
+        std::memmove(b.refs.data() + blocks[k].offset, b.refs.data() + k * kRefBlock, blocks[k].count * sizeof(PrimRef));
     }
   }
   SSEBox box, cbox;
   for (const RefBlock& blk : blocks) box.grow(blk.box), cbox.grow(blk.cbox);
-  b.buf[0] = b.refs.get();
-  b.buf[1] = b.scratch.get();
+  b.buf[0] = b.refs.data();
+  b.buf[1] = b.scratch.data();
   b.nodes.resize(FastBuilder::node_capacity(total));
   bvh.prim_order.resize(total);
   b.prim_order = bvh.prim_order.data();

@@ -16,9 +16,16 @@ namespace tessera {
 // or more are 2 MB aligned and their whole 2 MB pages marked MADV_HUGEPAGE
 // before first touch, so that incoherent rays over a large mesh miss the TLB
 // far less often (Embree's "hugepages" option; the kernel may decline, which
-// only costs speed).
+// only costs speed). Freed ones stay mapped, up to a limit, for the next
+// build's arrays (bvh_memory.cpp: first touches of fresh pages do not scale
+// with threads).
 void* bvh_alloc_bytes(size_t bytes);
 void bvh_free_bytes(void* p, size_t bytes);
+// Bytes of freed arrays kept mapped for reuse (at most kBVHRetainBytes), and
+// their release (unmapped).
+constexpr size_t kBVHRetainBytes = size_t(256) << 20;
+size_t bvh_retained_bytes();
+void bvh_release_retained();
 template <typename T>
 struct LargePageAllocator {
   using value_type = T;

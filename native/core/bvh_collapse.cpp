@@ -13,6 +13,7 @@
 #include <atomic>
 #include <memory>
 #include <stdexcept>
+#include <type_traits>
 
 namespace tessera {
 
@@ -50,17 +51,22 @@ struct Collapser {
   // their parent everything is in `nodes`; otherwise the node region and the
   // block region (all nodes first, then all blocks) grow separately.
   struct Space {
-    uint32_t nodes = 0, blocks = 0;
+    uint32_t nodes, blocks;  // no initialisers: the plan array is left unwritten
   };
 
-  // Per binary node (filled by plan(), uninitialised before): triangles
-  // below it, whether the subtree, where it becomes a child of a wide node,
-  // is stored as one leaf of packed blocks instead of a node of its own, its
-  // wide SAH cost, and its space as a wide node.
-  std::unique_ptr<uint32_t[]> tris_below;
-  std::unique_ptr<uint8_t[]> as_leaf;
-  std::unique_ptr<float[]> cost_;
-  std::unique_ptr<Space[]> space_;
+  // Per binary node (filled by plan(), unwritten before): triangles below
+  // it, whether the subtree, where it becomes a child of a wide node, is
+  // stored as one leaf of packed blocks instead of a node of its own, its
+  // wide SAH cost, and its space as a wide node. One array from the BVH
+  // allocator (memory of an earlier build: no fresh pages to fault in).
+  struct Planned {
+    uint32_t tris_below;
+    float cost;
+    Space space;
+    uint8_t as_leaf;
+  };
+  static_assert(std::is_trivially_default_constructible<Planned>::value, "resize must not write the plan");
+  BVHArray<Planned> planned;
   // Nodes and blocks written, counted per task and summed by the parent
   // after its tasks (a shared atomic made every leaf's lock-prefixed add wait
   // for the block stores before it, and moved between the cores).
@@ -80,7 +86,7 @@ struct Collapser {
   uint32_t emit_leaf(uint32_t i, uint32_t unit, Counts& counts) {
     uint32_t first = i;
     while (!bin.nodes[first].is_leaf()) first = bin.nodes[first].first;
-    const uint32_t lo = bin.nodes[first].first, count = tris_below[i];
+    const uint32_t lo = bin.nodes[first].first, count = planned[i].tris_below;
     const uint32_t blocks = blocks_for(count);
     if (unit >= (uint32_t(1) << 28)) throw std::length_error("mesh too large for the wide BVH's 28-bit leaf references");
     Tri4* out_blocks = reinterpret_cast<Tri4*>(mem() + size_t(unit) * kBlockUnit);
@@ -157,7 +163,7 @@ struct Collapser {
   }
 
 
-  bool is_leaf_child(uint32_t i) const { return bin.nodes[i].is_leaf() || as_leaf[i]; }
+  bool is_leaf_child(uint32_t i) const { return bin.nodes[i].is_leaf() || planned[i].as_leaf; }
 
   // Wide SAH (unnormalised: area times cost) of binary subtree i as a child
   // of a wide node, choosing bottom-up between a node of its own (the
@@ -174,10 +180,10 @@ struct Collapser {
     const BVHNode& n = bin.nodes[i];
     const float a = area(n);
     if (n.is_leaf()) {
-      tris_below[i] = n.count;
-      as_leaf[i] = 0;
-      cost_[i] = a * opt.intersection_cost * float(blocks_for(n.count));
-      space_[i] = Space{};
+      planned[i].tris_below = n.count;
+      planned[i].as_leaf = 0;
+      planned[i].cost = a * opt.intersection_cost * float(blocks_for(n.count));
+      planned[i].space = Space{};
       return;
     }
     if (opt.parallel && depth < kParallelPlanDepth) {
@@ -186,19 +192,19 @@ struct Collapser {
       plan(n.first, depth + 1);
       plan(n.first + 1, depth + 1);
     }
-    tris_below[i] = tris_below[n.first] + tris_below[n.first + 1];
+    planned[i].tris_below = planned[n.first].tris_below + planned[n.first + 1].tris_below;
     uint32_t kids[N];
     const int count = open_children(n, kids);
     float child_cost = 0.0f;
-    Space s;
+    Space s{};
     uint32_t leaf_units = 0;
     for (int c = 0; c < count; ++c) {
-      child_cost += cost_[kids[c]];
+      child_cost += planned[kids[c]].cost;
       if (is_leaf_child(kids[c])) {
-        leaf_units += kBlockUnits * blocks_for(tris_below[kids[c]]);
+        leaf_units += kBlockUnits * blocks_for(planned[kids[c]].tris_below);
       } else {
-        s.nodes += space_[kids[c]].nodes;
-        s.blocks += space_[kids[c]].blocks;
+        s.nodes += planned[kids[c]].space.nodes;
+        s.blocks += planned[kids[c]].space.blocks;
       }
     }
     if (shared()) {
@@ -207,12 +213,12 @@ struct Collapser {
       s.nodes += kNodeUnits;
       s.blocks += leaf_units;
     }
-    space_[i] = s;
+    planned[i].space = s;
     const float node_cost = a * opt.traversal_cost + child_cost;
-    const uint32_t blocks = blocks_for(tris_below[i]);
+    const uint32_t blocks = blocks_for(planned[i].tris_below);
     const float leaf_cost = a * opt.intersection_cost * float(blocks);
-    as_leaf[i] = opt.collapse_small_subtrees && blocks <= kMaxLeafBlocks && leaf_cost <= node_cost;
-    cost_[i] = as_leaf[i] ? leaf_cost : node_cost;
+    planned[i].as_leaf = opt.collapse_small_subtrees && blocks <= kMaxLeafBlocks && leaf_cost <= node_cost;
+    planned[i].cost = planned[i].as_leaf ? leaf_cost : node_cost;
   }
 
   // Subtrees of more triangles than this are emitted as TBB tasks.
@@ -233,7 +239,7 @@ struct Collapser {
     for (int c = 0; c < count; ++c)
       if (is_leaf_child(kids[c])) {
         refs[c] = emit_leaf(kids[c], b, counts);
-        b += kBlockUnits * blocks_for(tris_below[kids[c]]);
+        b += kBlockUnits * blocks_for(planned[kids[c]].tris_below);
       }
     uint32_t next = shared() ? align_node(b) : unit + kNodeUnits;
     uint32_t next_block = shared() ? 0 : b;
@@ -242,7 +248,7 @@ struct Collapser {
     for (int c = 0; c < count; ++c) {
       const uint32_t k = kids[c];
       if (is_leaf_child(k)) continue;
-      if (opt.parallel && tris_below[k] > kParallelEmit) {
+      if (opt.parallel && planned[k].tris_below > kParallelEmit) {
         tasks.run([this, &refs, &task_counts, c, k, next, next_block] {
           refs[c] = emit(k, next, next_block, task_counts[c]);
         });
@@ -250,8 +256,8 @@ struct Collapser {
       } else {
         refs[c] = emit(k, next, next_block, counts);
       }
-      next += space_[k].nodes;
-      next_block += space_[k].blocks;
+      next += planned[k].space.nodes;
+      next_block += planned[k].space.blocks;
     }
     if (spawned) {
       tasks.wait();
@@ -271,8 +277,9 @@ struct Collapser {
     Counts counts;
     if (root.is_leaf()) {
       // A leaf root gets a node with one child; its blocks follow the node.
-      tris_below.reset(new uint32_t[1]{root.count});
-      as_leaf.reset(new uint8_t[1]{0});
+      planned.resize(1);
+      planned[0].tris_below = root.count;
+      planned[0].as_leaf = 0;
       units = kNodeUnits + kBlockUnits * blocks_for(root.count);
       out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
       Node& node = *reinterpret_cast<Node*>(mem());
@@ -282,13 +289,10 @@ struct Collapser {
       counts.nodes = 1;
     } else {
       const size_t n = bin.nodes.size();
-      tris_below.reset(new uint32_t[n]);
-      as_leaf.reset(new uint8_t[n]);
-      cost_.reset(new float[n]);
-      space_.reset(new Space[n]);
+      planned.resize(n);
       plan(0, 0);
-      as_leaf[0] = 0;  // the root stays a node
-      const Space s = space_[0];
+      planned[0].as_leaf = 0;  // the root stays a node
+      const Space s = planned[0].space;
       units = size_t(s.nodes) + s.blocks;  // the node region ends 64-byte aligned
       out.mem.resize((units * kBlockUnit + sizeof(BVHLine) - 1) / sizeof(BVHLine));
       emit(0, 0, s.nodes, counts);

@@ -57,6 +57,19 @@ void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& options) {
   }
 }
 
+// Triangle boxes for a build, from the BVH allocator (memory of an earlier
+// build, no fresh pages to fault in: bvh_memory.cpp) and left unwritten:
+// the caller constructs each box once, in parallel.
+struct Boxes {
+  size_t bytes;
+  AABB* p;
+  explicit Boxes(size_t n) : bytes(std::max<size_t>(n, 1) * sizeof(AABB)), p(static_cast<AABB*>(bvh_alloc_bytes(bytes))) {}
+  ~Boxes() { bvh_free_bytes(p, bytes); }
+  Boxes(const Boxes&) = delete;
+  Boxes& operator=(const Boxes&) = delete;
+};
+static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
+
 // Per-triangle attributes stay in Blender's order (indexed by prim_ids).
 void copy_attributes(Mesh& mesh, const MeshInput& in) {
   const size_t nt = in.num_triangles;
@@ -78,12 +91,7 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   mesh.num_input_triangles = nt;
   // Triangle boxes, written once each in parallel (no serial construction
   // of the array first); invalid triangles get an empty box and are skipped.
-  struct Boxes {
-    AABB* p;
-    explicit Boxes(size_t n) : p(static_cast<AABB*>(::operator new(std::max<size_t>(n, 1) * sizeof(AABB)))) {}
-    ~Boxes() { ::operator delete(p); }
-  } boxes(nt);
-  static_assert(std::is_trivially_destructible<AABB>::value, "boxes are never destroyed");
+  Boxes boxes(nt);
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
   std::atomic<size_t> degenerate{0};
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -102,6 +110,9 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
   const size_t kept = binary.prim_order.size();
   mesh.num_degenerate_triangles = degenerate.load();
   mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
+  // Unwritten by resize (BVHArray; zeroing them was a serial pass over 36
+  // bytes per triangle): each vertex is written once, in parallel.
+  static_assert(std::is_trivially_default_constructible<vec3>::value, "resize must not write the vertices");
   mesh.tri_verts.resize(3 * kept);
   mesh.prim_ids = std::move(binary.prim_order);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, kept, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -120,31 +131,48 @@ Mesh prepare_mesh(const MeshInput& in) {
   const size_t nt = in.num_triangles;
   mesh.num_input_triangles = nt;
   const vec3* pos = reinterpret_cast<const vec3*>(in.positions);
-  std::vector<uint8_t> keep(nt, 0);
-  std::atomic<size_t> degenerate{0};
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    size_t block_degenerate = 0;
-    for (size_t i = r.begin(); i < r.end(); ++i) {
+  // Two parallel passes over fixed blocks of triangles (the same result for
+  // any thread count): the checks, counting each block's kept triangles;
+  // then each block writes its kept ones, in input order, at the offset the
+  // blocks before it give (a prefix sum), and bounds them.
+  constexpr size_t kBlock = 4096;
+  const size_t nblocks = (nt + kBlock - 1) / kBlock;
+  struct Block {
+    size_t kept = 0, degenerate = 0, offset = 0;
+    AABB bounds;
+  };
+  std::vector<Block> blocks(nblocks);
+  std::vector<uint8_t> keep(nt);
+  tbb::parallel_for(size_t(0), nblocks, [&](size_t b) {
+    Block& blk = blocks[b];
+    for (size_t i = b * kBlock, e = std::min(nt, i + kBlock); i < e; ++i) {
       const TriangleCheck check = check_triangle(in, i);
       keep[i] = check == TriangleCheck::Kept;
-      block_degenerate += check == TriangleCheck::Degenerate;
+      blk.kept += keep[i];
+      blk.degenerate += check == TriangleCheck::Degenerate;
     }
-    degenerate += block_degenerate;
   });
-  // Reserved at its size: Scene::memory_bytes counts capacity, and growing
-  // by push_back kept up to twice what is used (~4 bytes per triangle).
-  mesh.prim_ids.reserve(size_t(std::count(keep.begin(), keep.end(), uint8_t(1))));
-  for (uint32_t i = 0; i < nt; ++i)
-    if (keep[i]) mesh.prim_ids.push_back(i);
-  const size_t kept = mesh.prim_ids.size();
-  mesh.num_degenerate_triangles = degenerate.load();
-  mesh.num_skipped_triangles = nt - kept - mesh.num_degenerate_triangles;
+  size_t kept = 0, degenerate = 0;
+  for (Block& blk : blocks) blk.offset = kept, kept += blk.kept, degenerate += blk.degenerate;
+  mesh.num_degenerate_triangles = degenerate;
+  mesh.num_skipped_triangles = nt - kept - degenerate;
+  mesh.prim_ids.resize(kept);
   mesh.tri_verts.resize(3 * kept);
+  tbb::parallel_for(size_t(0), nblocks, [&](size_t b) {
+    Block& blk = blocks[b];
+    size_t o = blk.offset;
+    AABB box;
+    for (size_t i = b * kBlock, e = std::min(nt, i + kBlock); i < e; ++i) {
+      if (!keep[i]) continue;
+      mesh.prim_ids[o] = uint32_t(i);
+      const uint32_t* idx = in.indices + 3 * i;
+      for (int k = 0; k < 3; ++k) box.grow(mesh.tri_verts[3 * o + k] = pos[idx[k]]);
+      ++o;
+    }
+    blk.bounds = box;
+  });
   AABB bounds;
-  for (size_t i = 0; i < kept; ++i) {
-    const uint32_t* idx = in.indices + 3 * mesh.prim_ids[i];
-    for (int k = 0; k < 3; ++k) bounds.grow(mesh.tri_verts[3 * i + k] = pos[idx[k]]);
-  }
+  for (const Block& blk : blocks) bounds.grow(blk.bounds);
   mesh.bvh.bounds = bounds;  // Mesh::bounds() without a tree
   copy_attributes(mesh, in);
   return mesh;
@@ -153,20 +181,28 @@ Mesh prepare_mesh(const MeshInput& in) {
 void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
   if (mesh.has_bvh() || mesh.prim_ids.empty()) return;
   const size_t n = mesh.prim_ids.size();
-  std::vector<AABB> boxes(n);
+  Boxes boxes(n);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i)
-      for (int k = 0; k < 3; ++k) boxes[i].grow(mesh.tri_verts[3 * i + k]);
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      AABB box;
+      for (int k = 0; k < 3; ++k) box.grow(mesh.tri_verts[3 * i + k]);
+      new (&boxes.p[i]) AABB(box);
+    }
   });
-  BVH binary = build_bvh(boxes.data(), n, tri4_leaf_options(options));
-  // Leaf order: binary.prim_order indexes the prepared order.
-  std::vector<vec3> verts(3 * binary.prim_order.size());
-  std::vector<uint32_t> ids(binary.prim_order.size());
-  for (size_t i = 0; i < ids.size(); ++i) {
-    const uint32_t j = binary.prim_order[i];
-    ids[i] = mesh.prim_ids[j];
-    for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
-  }
+  BVH binary = build_bvh(boxes.p, n, tri4_leaf_options(options));
+  // Leaf order: binary.prim_order indexes the prepared order (copied in
+  // parallel, as build_mesh does).
+  const size_t kept = binary.prim_order.size();
+  BVHArray<vec3> verts;
+  verts.resize(3 * kept);
+  std::vector<uint32_t> ids(kept);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, kept, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t j = binary.prim_order[i];
+      ids[i] = mesh.prim_ids[j];
+      for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
+    }
+  });
   mesh.tri_verts.swap(verts);
   mesh.prim_ids.swap(ids);
   attach_tree(mesh, binary, options);

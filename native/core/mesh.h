@@ -24,7 +24,7 @@ struct MeshInput {
 };
 
 struct Mesh {
-  std::vector<vec3> tri_verts;          // 3 per triangle, BVH leaf order
+  BVHArray<vec3> tri_verts;             // 3 per triangle, BVH leaf order (resize leaves them unwritten)
   std::vector<uint32_t> prim_ids;       // leaf order -> Blender triangle index
   std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
   std::vector<vec3> corner_normals;     // Blender order, 3 per triangle; empty: flat

@@ -145,7 +145,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   for (size_t j = 0; j < merged_owner_.size(); ++j) merged_owner_[j] = owner[merged_.prim_ids[j]];
   // The merged tree's Tri4 blocks carry the vertices; shading reads each
   // instance's own mesh.
-  std::vector<vec3>().swap(merged_.tri_verts);
+  BVHArray<vec3>().swap(merged_.tri_verts);
   std::vector<uint32_t>().swap(merged_.prim_ids);
   // The merged meshes' own trees are never walked again: free them, keeping
   // the bounds (Mesh::bounds) that a later commit() places instances by.

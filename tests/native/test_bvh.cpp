@@ -489,6 +489,68 @@ TEST(BVH, ParallelBuildIsIndependentOfThreadCount) {
   }
 }
 
+// A build's arrays may be memory another build freed (bvh_memory.cpp keeps
+// it mapped): nothing of what it held may reach the tree. A mesh built over
+// igea's retained arrays and one built over fresh (zero) pages are the same.
+TEST(BVH, TreeIndependentOfRetainedMemory) {
+  const TriangleSoup big = load_mesh_file(shared_dir() + "/meshes/igea.ply");
+  const TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
+  for (int w : widths()) {
+    const BuildOptions opt = with_width({}, w);
+    bvh_release_retained();
+    Mesh fresh = make_mesh(s, opt);
+    { Mesh other = make_mesh(big, opt); }
+    { Mesh other = make_mesh(big, opt); }  // the second one's arrays come from the first's
+    ASSERT_GT(bvh_retained_bytes(), 0u);
+    const Mesh reused = make_mesh(s, opt);
+    ASSERT_EQ(fresh.prim_ids, reused.prim_ids);
+    ASSERT_EQ(fresh.tri_verts, reused.tri_verts);
+    EXPECT_EQ(mesh_sah_cost(fresh), mesh_sah_cost(reused));
+    if (fresh.width() == 8) expect_same_wide_tree(fresh.bvh8, reused.bvh8);
+    else expect_same_wide_tree(fresh.bvh, reused.bvh);
+  }
+}
+
+// The add-on's path (prepare_mesh, then build_mesh_bvh at commit: both
+// parallel) gives the mesh build_mesh gives, at one and two threads, with
+// invalid and degenerate triangles spread over the input.
+TEST(BVH, PreparedMeshBuildsTheSameTreeAsBuildMesh) {
+  TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/igea.ply");
+  const size_t nv = s.positions.size() / 3;
+  for (size_t t = 7; t < s.num_triangles(); t += 1009) {
+    if (t % 3 == 0) s.indices[3 * t + 1] = uint32_t(nv + 5);        // index out of range: skipped
+    else if (t % 3 == 1) s.indices[3 * t + 2] = s.indices[3 * t];  // two equal corners: degenerate
+    else s.positions[3 * s.indices[3 * t]] = std::nanf("");         // non-finite corner: skipped (and its neighbours)
+  }
+  MeshInput in;
+  in.positions = s.positions.data();
+  in.num_vertices = nv;
+  in.indices = s.indices.data();
+  in.num_triangles = s.num_triangles();
+  for (int w : widths()) {
+    const BuildOptions opt = with_width({}, w);
+    const Mesh direct = build_mesh(in, opt);
+    EXPECT_GT(direct.num_skipped_triangles, 50u);
+    EXPECT_GT(direct.num_degenerate_triangles, 50u);
+    for (int threads : {1, 2}) {
+      Mesh prepared;
+      tbb::task_arena(threads).execute([&] {
+        prepared = prepare_mesh(in);
+        EXPECT_EQ(prepared.bounds().lo, direct.bounds().lo);
+        EXPECT_EQ(prepared.bounds().hi, direct.bounds().hi);
+        build_mesh_bvh(prepared, opt);
+      });
+      EXPECT_EQ(prepared.num_skipped_triangles, direct.num_skipped_triangles);
+      EXPECT_EQ(prepared.num_degenerate_triangles, direct.num_degenerate_triangles);
+      ASSERT_EQ(prepared.prim_ids, direct.prim_ids) << threads << " threads";
+      ASSERT_EQ(prepared.tri_verts, direct.tri_verts);
+      EXPECT_EQ(mesh_sah_cost(prepared), mesh_sah_cost(direct));
+      if (direct.width() == 8) expect_same_wide_tree(prepared.bvh8, direct.bvh8);
+      else expect_same_wide_tree(prepared.bvh, direct.bvh);
+    }
+  }
+}
+
 TEST(BVH, ParallelCollapseMatchesSerialCollapse) {
   TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
   std::vector<AABB> boxes(s.num_triangles());

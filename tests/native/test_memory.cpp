@@ -1,7 +1,8 @@
 // Where the BVH's large arrays live (bvh.h, LargePageAllocator): 2 MB aligned
 // and mapped from the kernel, so that MADV_HUGEPAGE applies before first
 // touch whatever the process's heap held before (a previous scene's
-// arrays, Blender's own).
+// arrays, Blender's own); freed ones are kept mapped for the next build
+// (bvh_memory.cpp).
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -11,6 +12,9 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
+
+#include <sys/resource.h>
 
 #include "core/bvh.h"
 #include "core/mesh.h"
@@ -96,4 +100,89 @@ TEST(Memory, MeshArraysHoldNoSpareCapacity) {
   build_mesh_bvh(prepared);
   expect_fitted(prepared, "build_mesh_bvh");
   expect_fitted(build_mesh(in), "build_mesh");
+}
+
+namespace {
+#if defined(__linux__)
+// Minor page faults of the calling thread so far (first touches of fresh pages).
+long thread_faults() {
+  rusage u;
+  getrusage(RUSAGE_THREAD, &u);
+  return u.ru_minflt;
+}
+#endif
+}  // namespace
+
+// A freed large array stays mapped, and the next array of its size (after
+// rounding up to large pages) gets the same pages: writing all of it takes
+// no page fault. A larger retained region serves a smaller request (the
+// smallest that fits), the rest of it unmapped.
+TEST(Memory, FreedLargeArraysAreReusedWithoutFaults) {
+#if !defined(__linux__)
+  GTEST_SKIP() << "retention and fault counts are Linux's";
+#else
+  bvh_release_retained();
+  ASSERT_EQ(0u, bvh_retained_bytes());
+  constexpr size_t kMB = size_t(1) << 20;
+  const uint8_t* first = nullptr;
+  {
+    BVHArray<uint8_t> a;
+    a.resize(6 * kMB);
+    std::memset(a.data(), 1, a.size());
+    first = a.data();
+  }
+  EXPECT_EQ(6 * kMB, bvh_retained_bytes());
+  {
+    BVHArray<uint8_t> b;
+    b.resize(5 * kMB + 12345);  // rounds up to the same 6 MB
+    EXPECT_EQ(first, b.data());
+    EXPECT_EQ(0u, bvh_retained_bytes());
+    const long f0 = thread_faults();
+    std::memset(b.data(), 2, b.size());
+    EXPECT_EQ(0, thread_faults() - f0) << "the retained pages were not reused";
+  }
+  {
+    BVHArray<uint8_t> large;
+    large.resize(10 * kMB);
+    std::memset(large.data(), 3, large.size());
+    const uint8_t* large_p = large.data();
+    BVHArray<uint8_t>().swap(large);  // retained: 6 MB and 10 MB
+    EXPECT_EQ(16 * kMB, bvh_retained_bytes());
+    BVHArray<uint8_t> c;
+    c.resize(8 * kMB);  // only the 10 MB region holds it: its last 2 MB are unmapped
+    EXPECT_EQ(large_p, c.data());
+    EXPECT_EQ(6 * kMB, bvh_retained_bytes());
+    const long f0 = thread_faults();
+    std::memset(c.data(), 4, c.size());
+    EXPECT_EQ(0, thread_faults() - f0);
+  }
+  EXPECT_EQ(14 * kMB, bvh_retained_bytes());
+  bvh_release_retained();
+  EXPECT_EQ(0u, bvh_retained_bytes());
+#endif
+}
+
+// Retention is bounded: freeing more than kBVHRetainBytes of arrays keeps at
+// most that much (the oldest are unmapped), and an array larger than the
+// bound is unmapped at once. The arrays are never touched here (mapping
+// costs no memory until then).
+TEST(Memory, RetainedMemoryIsBounded) {
+#if !defined(__linux__)
+  GTEST_SKIP() << "retention is Linux's";
+#else
+  bvh_release_retained();
+  constexpr size_t kArray = size_t(24) << 20;
+  {
+    std::vector<BVHArray<uint8_t>> arrays(2 * kBVHRetainBytes / kArray);
+    for (auto& a : arrays) a.resize(kArray);
+  }
+  EXPECT_LE(bvh_retained_bytes(), kBVHRetainBytes);
+  EXPECT_GE(bvh_retained_bytes(), kBVHRetainBytes - kArray);
+  bvh_release_retained();
+  {
+    BVHArray<uint8_t> huge;
+    huge.resize(kBVHRetainBytes + kArray);
+  }
+  EXPECT_EQ(0u, bvh_retained_bytes());
+#endif
 }
