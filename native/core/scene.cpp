@@ -184,6 +184,10 @@ void Scene::commit() {
   AABB b = tlas_.bounds();
   float radius = b.empty() ? 1.0f : 0.5f * glm::length(b.extent());
   light_sampler_.build(lights, collect_emissive_triangles(), &background, std::max(radius, 1e-6f));
+  // The builds' freed scratch (boxes, references, partition buffers, trees
+  // merged away) served the builds that followed it in this commit; the
+  // render needs none of it, and it is the kernel's again.
+  bvh_release_retained();
 }
 
 // One TLAS item: the merged triangles, or an instance's mesh with the ray

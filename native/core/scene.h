@@ -53,6 +53,16 @@ struct MaterialScratch {
 static_assert(std::is_trivially_destructible_v<Material>);
 
 class Scene {
+  // Declared first, so destroyed last: once the meshes' trees have gone back
+  // to the build allocator's retained memory (bvh_memory.cpp), it is
+  // returned to the kernel, and a freed scene leaves nothing mapped.
+  struct ReleaseRetainedBuildMemory {
+    ReleaseRetainedBuildMemory() = default;
+    ReleaseRetainedBuildMemory(const ReleaseRetainedBuildMemory&) = default;
+    ReleaseRetainedBuildMemory& operator=(const ReleaseRetainedBuildMemory&) = default;
+    ~ReleaseRetainedBuildMemory() { bvh_release_retained(); }
+  } release_retained_on_destruction_;
+
  public:
   std::vector<Mesh> meshes;
   std::vector<Instance> instances;
