@@ -36,6 +36,29 @@ std::string mapping_of(const void* p) {
   }
   return "";
 }
+
+// An n x n grid of quads (2 n^2 triangles) with bumpy heights, as a mesh input.
+struct Grid {
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+  explicit Grid(int n) {
+    for (int y = 0; y <= n; ++y)
+      for (int x = 0; x <= n; ++x) pos.insert(pos.end(), {float(x), float(y), 0.5f * float((x * 7 + y * 3) % 5)});
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const uint32_t a = uint32_t(y * (n + 1) + x), b = a + 1, c = a + uint32_t(n) + 1, d = c + 1;
+        idx.insert(idx.end(), {a, b, d, a, d, c});
+      }
+  }
+  MeshInput input() const {
+    MeshInput in;
+    in.positions = pos.data();
+    in.num_vertices = pos.size() / 3;
+    in.indices = idx.data();
+    in.num_triangles = idx.size() / 3;
+    return in;
+  }
+};
 }  // namespace
 
 TEST(Memory, LargeBVHArraysAreMappedFromTheKernelWhateverTheHeapHeld) {
@@ -75,21 +98,9 @@ TEST(Memory, LargeBVHArraysAreMappedFromTheKernelWhateverTheHeapHeld) {
 // which has triangles left out (two equal corners, out-of-range indices).
 TEST(Memory, MeshArraysHoldNoSpareCapacity) {
   constexpr int kGrid = 37;  // 2 * 37 * 37 = 2738 triangles
-  std::vector<float> pos;
-  for (int y = 0; y <= kGrid; ++y)
-    for (int x = 0; x <= kGrid; ++x) pos.insert(pos.end(), {float(x), float(y), 0.1f * float((x * y) % 3)});
-  std::vector<uint32_t> idx;
-  for (int y = 0; y < kGrid; ++y)
-    for (int x = 0; x < kGrid; ++x) {
-      const uint32_t a = uint32_t(y * (kGrid + 1) + x), b = a + 1, c = a + kGrid + 1, d = c + 1;
-      idx.insert(idx.end(), {a, b, d, a, d, c});
-    }
-  idx.insert(idx.end(), {0, 0, 1, 0, 1, 99999});  // two equal corners; an index out of range
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  Grid grid(kGrid);
+  grid.idx.insert(grid.idx.end(), {0, 0, 1, 0, 1, 99999});  // two equal corners; an index out of range
+  const MeshInput in = grid.input();
   auto expect_fitted = [](const Mesh& m, const char* when) {
     EXPECT_EQ(m.prim_ids.size(), m.prim_ids.capacity()) << when;
     EXPECT_EQ(m.tri_verts.size(), m.tri_verts.capacity()) << when;
@@ -196,21 +207,8 @@ TEST(Memory, RetainedMemoryIsBounded) {
 // first), nothing stays retained in the host process (Blender).
 TEST(Memory, ACommittedOrFreedSceneRetainsNoBuildMemory) {
   bvh_release_retained();
-  constexpr int kGrid = 160;  // 51,200 triangles: boxes, references and trees of 256 KB and more
-  std::vector<float> pos;
-  for (int y = 0; y <= kGrid; ++y)
-    for (int x = 0; x <= kGrid; ++x) pos.insert(pos.end(), {float(x), float(y), float((x * 7 + y * 3) % 5)});
-  std::vector<uint32_t> idx;
-  for (int y = 0; y < kGrid; ++y)
-    for (int x = 0; x < kGrid; ++x) {
-      const uint32_t a = uint32_t(y * (kGrid + 1) + x), b = a + 1, c = a + kGrid + 1, d = c + 1;
-      idx.insert(idx.end(), {a, b, d, a, d, c});
-    }
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  const Grid grid(160);  // 51,200 triangles: boxes, references and trees of 256 KB and more
+  const MeshInput in = grid.input();
   {
     Mesh scratch = build_mesh(in);  // a build outside any scene keeps its scratch for the next
   }
