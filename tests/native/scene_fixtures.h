@@ -4,6 +4,17 @@
 
 namespace tessera::fixtures {
 
+// The mesh input over vertex positions (3 floats each) and triangle indices
+// (3 each) that the caller keeps alive.
+inline MeshInput mesh_input(const std::vector<float>& pos, const std::vector<uint32_t>& idx) {
+  MeshInput in;
+  in.positions = pos.data();
+  in.num_vertices = pos.size() / 3;
+  in.indices = idx.data();
+  in.num_triangles = idx.size() / 3;
+  return in;
+}
+
 // Adds an axis-aligned quad (two triangles) as its own mesh and instance.
 inline void add_quad(Scene& s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t material, const mat4& xf = mat4(1.0f)) {
   const float pos[12] = {a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z, d.x, d.y, d.z};

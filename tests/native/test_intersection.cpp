@@ -15,6 +15,7 @@
 #include "core/scene.h"
 #include "core/simd_tri4.h"
 #include "core/triangle.h"
+#include "scene_fixtures.h"
 
 using namespace tessera;
 
@@ -121,11 +122,7 @@ TEST(Triangle, MeshGridHasNoCracksThroughSimdPath) {
       if ((x + y) % 2) idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y), id(x + 1, y + 1), id(x, y + 1)});
       else idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x, y + 1), id(x + 1, y), id(x + 1, y + 1), id(x, y + 1)});
     }
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  MeshInput in = fixtures::mesh_input(pos, idx);
   // Width 4 (SSE2), 8 with the AVX2 kernel, 8 with the AVX-512 kernel.
   std::vector<std::pair<int, bool>> widths{{4, false}};
   if (cpu_simd_level() == SimdLevel::AVX2) widths.push_back({8, false});
@@ -209,11 +206,7 @@ MeshInput random_soup(std::vector<float>& pos, std::vector<uint32_t>& idx) {
   const uint32_t base = uint32_t(pos.size() / 3);
   pos.insert(pos.end(), q, q + 12);
   idx.insert(idx.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  MeshInput in = fixtures::mesh_input(pos, idx);
   return in;
 }
 }  // namespace
@@ -371,11 +364,7 @@ TEST(Triangle, Bvh8HitsEqualBvh4BitForBit) {
   const uint32_t base = uint32_t(pos.size() / 3);
   pos.insert(pos.end(), q, q + 12);
   idx.insert(idx.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  MeshInput in = fixtures::mesh_input(pos, idx);
   BuildOptions o4, o8;
   o4.bvh_width = 4;
   o8.bvh_width = 8;
@@ -429,11 +418,7 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
       if ((x + y) % 3 == 0) idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 1, y)});  // two equal vertices
       if ((x + y) % 5 == 0 && x + 2 <= n) idx.insert(idx.end(), {id(x, y), id(x + 1, y), id(x + 2, y)});  // in a line
     }
-  MeshInput in;
-  in.positions = pos.data();
-  in.num_vertices = pos.size() / 3;
-  in.indices = idx.data();
-  in.num_triangles = idx.size() / 3;
+  MeshInput in = fixtures::mesh_input(pos, idx);
   std::vector<std::pair<int, bool>> kernels{{4, false}};
   if (cpu_simd_level() == SimdLevel::AVX2) kernels.push_back({8, false});
   if (cpu_has_avx512()) kernels.push_back({8, true});
@@ -787,21 +772,12 @@ TEST(Triangle, RaysLeavingLongThinTrianglesDoNotHitThem) {
     add_sliver(verts, c, along, glm::normalize(glm::cross(along, unit())), 2.0f + 8.0f * u01(rng),
                std::pow(10.0f, -4.0f + 1.7f * u01(rng)));
   }
-  std::vector<uint32_t> idx(verts.size());
-  for (size_t i = 0; i < idx.size(); ++i) idx[i] = uint32_t(i);
-  MeshInput in;
-  in.positions = &verts[0].x;
-  in.num_vertices = verts.size();
-  in.indices = idx.data();
-  in.num_triangles = verts.size() / 3;
   const bool saved_kernel = g_bvh8_avx512;
   for (auto [width, avx512] : mesh_kernels()) {
     g_bvh8_avx512 = avx512;
     for (bool instanced : {false, true}) {
-      BuildOptions opt;
-      opt.bvh_width = width;
       Scene s;
-      s.meshes.push_back(build_mesh(in, opt));
+      s.meshes.push_back(mesh_of(verts, width));
       const mat4 xf = instanced ? glm::translate(mat4(1.0f), vec3(3.0f, -7.0f, 11.0f)) * glm::scale(mat4(1.0f), vec3(3.0f))
                                 : mat4(1.0f);
       s.add_instance(0, xf, {0});

@@ -21,6 +21,7 @@
 #include "core/bvh.h"
 #include "core/mesh.h"
 #include "core/scene.h"
+#include "scene_fixtures.h"
 
 using namespace tessera;
 
@@ -50,14 +51,7 @@ struct Grid {
         idx.insert(idx.end(), {a, b, d, a, d, c});
       }
   }
-  MeshInput input() const {
-    MeshInput in;
-    in.positions = pos.data();
-    in.num_vertices = pos.size() / 3;
-    in.indices = idx.data();
-    in.num_triangles = idx.size() / 3;
-    return in;
-  }
+  MeshInput input() const { return fixtures::mesh_input(pos, idx); }
 };
 }  // namespace
 

@@ -98,11 +98,7 @@ SphereMesh grid(int n, float size, vec3 center) {
 
 uint32_t add_mesh(Scene& s, const SphereMesh& m, uint32_t material, const mat4& xf = mat4(1.0f),
                   const std::vector<float>* normals = nullptr) {
-  MeshInput in;
-  in.positions = m.pos.data();
-  in.num_vertices = m.pos.size() / 3;
-  in.indices = m.idx.data();
-  in.num_triangles = m.idx.size() / 3;
+  MeshInput in = fixtures::mesh_input(m.pos, m.idx);
   if (normals) in.corner_normals = normals->data();
   s.meshes.push_back(build_mesh(in));
   return s.add_instance(uint32_t(s.meshes.size() - 1), xf, {material});
@@ -192,11 +188,7 @@ TEST(Numerics, CornellBoxFarFromTheOrigin) {
             pos.insert(pos.end(), {p.x, p.y, p.z});
             idx.push_back(uint32_t(idx.size()));
           }
-        MeshInput in;
-        in.positions = pos.data();
-        in.num_vertices = pos.size() / 3;
-        in.indices = idx.data();
-        in.num_triangles = idx.size() / 3;
+        MeshInput in = fixtures::mesh_input(pos, idx);
         moved.meshes.push_back(build_mesh(in));
       }
       moved.materials = s.materials;
