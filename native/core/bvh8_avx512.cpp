@@ -87,9 +87,19 @@ struct RaySetup {
     // and -1 for a negative one (down: the same on the negated value); + 0
     // first turns -0 into +0. A short chain after the division (most random
     // rays visit two nodes: a rounding test in double cost them 10%).
+    // A result below the smallest normal float goes to it (positive) or to
+    // +0 (negative), still an upper bound: a subnormal constant would make
+    // every node test's multiply-add a microcode assist (~100 cycles), and
+    // o inv rounds to 0 wherever an origin coordinate is 0 (a camera on an
+    // axis, a ray leaving a floor at z = 0): next_up(0) is subnormal.
     auto next_up = [](__m128 x) {
       const __m128i b = _mm_castps_si128(_mm_add_ps(x, _mm_setzero_ps()));
-      return _mm_castsi128_ps(_mm_add_epi32(b, _mm_or_si128(_mm_srai_epi32(b, 31), _mm_set1_epi32(1))));
+      __m128i r = _mm_add_epi32(b, _mm_or_si128(_mm_srai_epi32(b, 31), _mm_set1_epi32(1)));
+      const __m128i min_normal = _mm_set1_epi32(0x00800000);
+      const __mmask8 tiny = _mm_cmplt_epi32_mask(_mm_and_si128(r, _mm_set1_epi32(0x7FFFFFFF)), min_normal);
+      const __mmask8 positive = _mm_cmpgt_epi32_mask(r, _mm_setzero_si128());
+      r = _mm_mask_mov_epi32(r, tiny, _mm_setzero_si128());
+      return _mm_castsi128_ps(_mm_mask_mov_epi32(r, __mmask8(tiny & positive), min_normal));
     };
     c_near = next_up(_mm_mul_ps(o_near, inv));
     c_far = _mm_xor_ps(next_up(_mm_xor_ps(_mm_mul_ps(o_far, inv_far), sign)), sign);
