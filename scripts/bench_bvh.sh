@@ -14,15 +14,19 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DTESS
   -DPYTHON_EXECUTABLE="${TESSERA_PYTHON:-/usr/bin/python3}" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target bench_bvh >/dev/null
 MESHES=("$MESHES_DIR"/stanford-bunny.obj "$MESHES_DIR"/nefertiti.obj "$MESHES_DIR"/ogre.obj "$MESHES_DIR"/igea.ply)
-# The interior scene: modern_hall's triangles in world space as a render
-# traces them, with its camera (scripts/export_scene_mesh.py; needs Blender).
+# The scenes: modern_hall (an interior) and McGuire's Cornell box (36
+# triangles, camera on the plane x = 0), their triangles in world space as a
+# render traces them, with their cameras (scripts/export_scene_mesh.py;
+# needs Blender).
 SCENES_DIR=${TESSERA_SCENES:-$(dirname "$MESHES_DIR")/scenes}
-INTERIOR="$BUILD/modern_hall.ply"
-if [ ! -s "$INTERIOR" ] && command -v "${BLENDER:-blender}" >/dev/null && [ -f "$SCENES_DIR/modern_hall.blend" ]; then
-  "${BLENDER:-blender}" -b "$SCENES_DIR/modern_hall.blend" --factory-startup --python scripts/export_scene_mesh.py -- "$INTERIOR" >/dev/null 2>&1 ||
-    rm -f "$INTERIOR"
-fi
-if [ -s "$INTERIOR" ]; then MESHES+=("$INTERIOR"); else echo "bench_bvh: no Blender or modern_hall.blend: the interior scene is left out" >&2; fi
+for SCENE in modern_hall cornell_mcguire; do
+  PLY="$BUILD/$SCENE.ply"
+  if [ ! -s "$PLY" ] && command -v "${BLENDER:-blender}" >/dev/null && [ -f "$SCENES_DIR/$SCENE.blend" ]; then
+    "${BLENDER:-blender}" -b "$SCENES_DIR/$SCENE.blend" --factory-startup --python scripts/export_scene_mesh.py -- "$PLY" >/dev/null 2>&1 ||
+      rm -f "$PLY"
+  fi
+  if [ -s "$PLY" ]; then MESHES+=("$PLY"); else echo "bench_bvh: no Blender or $SCENE.blend: that scene is left out" >&2; fi
+done
 ARGS=(--mode all --runs 5 --res 1024 --threads 1,2 --clock cpu --builder-threads 1 --builder-res 512 --builder-meshes stanford-bunny.obj,igea.ply "$@")
 REPEAT=${REPEAT:-3}
 OUT=docs/BVH_BENCHMARK.md
@@ -76,7 +80,7 @@ rm -rf "$RUNS_DIR"
   echo "5-20%; compare the ratios (engines interleaved in one loop), not absolute figures with older runs."
   echo
   echo "Ray sets (identical arrays for both engines): primary = 1 pinhole ray per pixel of a res x res image"
-  echo "looking at the mesh (modern_hall.ply, the interior scene: from the scene's own camera, inside the hall,"
+  echo "looking at the mesh (the scenes modern_hall.ply and cornell_mcguire.ply: from the scene's own camera, inside the hall or in front of the box,"
   echo "and the shadow rays' light just above that camera); diffuse = one cosine-weighted bounce from each primary hit; random = res x res rays"
   echo "from random points in the (1.2x) bounding box in uniformly random directions; shadow = any-hit rays"
   echo "from each primary hit to a point light. Both engines are driven by TBB parallel_for over chunks of 256"
