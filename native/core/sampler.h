@@ -63,32 +63,61 @@ inline uint32_t sobol_dim1(uint32_t index) {
          kSobolDim1.byte[2][(index >> 16) & 255U] ^ kSobolDim1.byte[3][index >> 24];
 }
 
+// reverse_bits(sobol_dim1(reverse_bits(w))), from w's bytes: bit reversal
+// is a permutation of bits, so it commutes with XOR, and w's byte k holds
+// index byte 3 - k with its bits reversed. The sampler draws the shuffled
+// index bit-reversed (w) and scrambles the point bit-reversed, so this takes
+// both reversals of the y coordinate off its dependency chain.
+constexpr uint32_t reverse_bits_serial(uint32_t x) {
+  uint32_t r = 0;
+  for (int i = 0; i < 32; ++i) r |= ((x >> i) & 1U) << (31 - i);
+  return r;
+}
+struct SobolDim1ReversedTable {
+  uint32_t byte[4][256];
+  constexpr SobolDim1ReversedTable() : byte{} {
+    for (int k = 0; k < 4; ++k)
+      for (uint32_t b = 0; b < 256; ++b)
+        byte[k][b] = reverse_bits_serial(sobol_dim1_serial(reverse_bits_serial(b) >> (8 * k)));
+  }
+};
+inline constexpr SobolDim1ReversedTable kSobolDim1Reversed{};
+inline uint32_t sobol_dim1_reversed(uint32_t w) {
+  return kSobolDim1Reversed.byte[0][w & 255U] ^ kSobolDim1Reversed.byte[1][(w >> 8) & 255U] ^
+         kSobolDim1Reversed.byte[2][(w >> 16) & 255U] ^ kSobolDim1Reversed.byte[3][w >> 24];
+}
+
 // The top 24 bits, exactly: rounding all 32 to a float could carry a value
 // across a stratum's edge (or to 1), breaking the points' stratification.
 inline float u32_to_unit_float(uint32_t x) { return float(x >> 8) * 0x1p-24f; }
 
 // Stream for one (pixel, sample): dimension pairs are drawn in order, each
 // pair decorrelated from the others by its own scrambling seed.
+// Each dimension pair: the sample index shuffled, index =
+// nested_uniform_scramble(sample, s), then the Sobol point at that index,
+// each coordinate scrambled, nested_uniform_scramble(sobol_dimK(index), s_K).
+// Computed with the reversals that cancel left out: the shuffle's inner
+// reversal of `sample` once per stream, x's two around sobol_dim0, and y's
+// through sobol_dim1_reversed (test Sampler.StreamEqualsTheNestedScrambleDefinition).
 struct Sampler {
   uint32_t pixel_seed;
-  uint32_t sample;
+  uint32_t sample_reversed;  // reverse_bits(sample index)
   uint32_t dimension = 0;
 
   Sampler(uint32_t px, uint32_t py, uint32_t sample_index, uint32_t seed)
-      : pixel_seed(hash_combine(hash_combine(hash_u32(seed), px), py)), sample(sample_index) {}
+      : pixel_seed(hash_combine(hash_combine(hash_u32(seed), px), py)), sample_reversed(reverse_bits(sample_index)) {}
 
   vec2 get_2d() {
     const uint32_t s = hash_combine(pixel_seed, dimension++);
-    const uint32_t index = nested_uniform_scramble(sample, s);
-    // nested_uniform_scramble(sobol_dim0(index)), its two bit reversals cancelled.
-    const uint32_t x = reverse_bits(laine_karras_permutation(index, hash_combine(s, 1)));
-    const uint32_t y = nested_uniform_scramble(sobol_dim1(index), hash_combine(s, 2));
+    const uint32_t w = laine_karras_permutation(sample_reversed, s);  // the shuffled index, bit-reversed
+    const uint32_t x = reverse_bits(laine_karras_permutation(reverse_bits(w), hash_combine(s, 1)));
+    const uint32_t y = reverse_bits(laine_karras_permutation(sobol_dim1_reversed(w), hash_combine(s, 2)));
     return vec2(u32_to_unit_float(x), u32_to_unit_float(y));
   }
   float get_1d() {
     const uint32_t s = hash_combine(pixel_seed, dimension++);
-    const uint32_t index = nested_uniform_scramble(sample, s);
-    return u32_to_unit_float(reverse_bits(laine_karras_permutation(index, hash_combine(s, 1))));
+    const uint32_t w = laine_karras_permutation(sample_reversed, s);
+    return u32_to_unit_float(reverse_bits(laine_karras_permutation(reverse_bits(w), hash_combine(s, 1))));
   }
 };
 

@@ -19,6 +19,37 @@ TEST(Sampler, SobolDim1TableEqualsTheBitSerialConstruction) {
   EXPECT_EQ(sobol_dim1(0xffffffffU), sobol_dim1_serial(0xffffffffU));
 }
 
+// The stream as the definition spells it (Burley 2020): index =
+// nested_uniform_scramble(sample, s), x = nested_uniform_scramble(
+// sobol_dim0(index), s1), y = nested_uniform_scramble(sobol_dim1(index), s2);
+// the sampler computes it without the reversals that cancel.
+TEST(Sampler, StreamEqualsTheNestedScrambleDefinition) {
+  for (uint32_t x = 0; x < 256; ++x) ASSERT_EQ(reverse_bits(x), reverse_bits_serial(x));
+  uint32_t w = 777;
+  for (int i = 0; i < 100000; ++i) {
+    w = hash_u32(w + uint32_t(i));
+    ASSERT_EQ(sobol_dim1_reversed(w), reverse_bits(sobol_dim1(reverse_bits(w)))) << w;
+  }
+  for (uint32_t pixel = 0; pixel < 4; ++pixel)
+    for (uint32_t sample : {0U, 1U, 2U, 3U, 63U, 64U, 1000U, 65537U, 0xfffffffeU}) {
+      Sampler sampler(pixel, 3, sample, 42);
+      const uint32_t pixel_seed = hash_combine(hash_combine(hash_u32(42), pixel), 3);
+      for (uint32_t dim = 0; dim < 12; ++dim) {
+        const uint32_t s = hash_combine(pixel_seed, dim);
+        const uint32_t index = nested_uniform_scramble(sample, s);
+        const float x = u32_to_unit_float(nested_uniform_scramble(sobol_dim0(index), hash_combine(s, 1)));
+        const float y = u32_to_unit_float(nested_uniform_scramble(sobol_dim1(index), hash_combine(s, 2)));
+        if (dim % 3 == 2) {
+          ASSERT_EQ(sampler.get_1d(), x) << "sample " << sample << " dim " << dim;
+        } else {
+          const vec2 u = sampler.get_2d();
+          ASSERT_EQ(u.x, x) << "sample " << sample << " dim " << dim;
+          ASSERT_EQ(u.y, y) << "sample " << sample << " dim " << dim;
+        }
+      }
+    }
+}
+
 // The first 2^m samples of every dimension pair of a pixel form a (0, m, 2)-net:
 // each of the 2^m elementary intervals of every shape (2^k by 2^(m-k) cells)
 // holds exactly one point (Burley 2020: shuffled and scrambled Sobol keeps it).
