@@ -386,6 +386,52 @@ TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
   EXPECT_GT(nonzero, 10000);
 }
 
+// ImportanceBounds::importance works with cosines and sines scaled by the
+// distance (no unit vector, one division): the same function as pbrt-v4's
+// angle form, here in double with the angles themselves, within rounding;
+// and 0 only where that form says the bounds cannot light p (conservative).
+TEST(LightBVH, ImportanceEqualsTheAngleForm) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  int lit = 0, unlit = 0;
+  for (int trial = 0; trial < 200000; ++trial) {
+    LightBounds b;
+    const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
+    const float r = trial % 5 == 0 ? 0.0f : U(rng);
+    b.bounds.grow(c - r * vec3(U(rng), U(rng), U(rng)));
+    b.bounds.grow(c + r * vec3(U(rng), U(rng), U(rng)));
+    b.w = unit();
+    b.phi = 0.1f + 10.0f * U(rng);
+    b.cos_theta_o = trial % 3 == 0 ? -1.0f : trial % 3 == 1 ? 1.0f : 2.0f * U(rng) - 1.0f;
+    b.cos_theta_e = trial % 4 == 0 ? std::cos(1e-3f) : trial % 4 == 1 ? std::cos(1.2f * U(rng)) : 0.0f;
+    b.two_sided = trial % 2 == 0;
+    const ImportanceBounds ib(b);
+    const vec3 p(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
+    const float imp = ib.importance(p, n);
+    // pbrt-v4 LightBounds::Importance in double.
+    const glm::dvec3 t = glm::dvec3(p) - glm::dvec3(ib.centre);
+    const double d = glm::length(t), rad = ib.radius;
+    const glm::dvec3 wi = t / d;
+    double cos_w = glm::dot(glm::dvec3(b.w), wi);
+    if (b.two_sided) cos_w = std::abs(cos_w);
+    const double theta_b = d < rad ? M_PI : std::asin(rad / d);
+    const double theta_x = std::max(0.0, std::acos(std::clamp(cos_w, -1.0, 1.0)) - std::acos(double(b.cos_theta_o)));
+    const double cos_p = std::cos(std::max(0.0, theta_x - theta_b));
+    const double scale = b.phi / std::max(d * d, rad);
+    double ref = cos_p > b.cos_theta_e ? scale * cos_p : 0.0;
+    if (n != vec3(0.0f))
+      ref *= std::cos(std::max(0.0, std::acos(std::abs(glm::dot(glm::dvec3(n), wi))) - theta_b));
+    if (cos_p > b.cos_theta_e + 1e-3) ASSERT_GT(imp, 0.0f) << "trial " << trial;
+    if (cos_p < b.cos_theta_e - 1e-3) ASSERT_EQ(imp, 0.0f) << "trial " << trial;
+    if (std::abs(cos_p - b.cos_theta_e) > 1e-3) ASSERT_NEAR(imp, ref, 1e-3 * scale) << "trial " << trial;
+    (imp > 0.0f ? lit : unlit)++;
+  }
+  EXPECT_GT(lit, 50000);
+  EXPECT_GT(unlit, 20000);
+}
+
 // Many lights: the BVH picks the ones that matter at the point, so the
 // estimate has far less spread than choosing by power alone, and stays exact.
 TEST(LightBVH, ManyLightsAreChosenByTheirContribution) {
