@@ -138,18 +138,18 @@ float shadow_end_error(const vec3& p, const vec3& q) {
 constexpr float kMinSphericalSampleArea = 3e-4f;
 constexpr float kSolidAngleWithin = 2.0f;
 
-// Squared distance from the triangle's centre beyond which sample() samples
-// it by area: its bounding sphere (centre, radius r) is then d > 0 away with
+// Sets t's centre and the squared distance from it beyond which sample()
+// samples t by area: its bounding sphere (centre, radius r) is then d > 0 away with
 // area < kMinSphericalSampleArea d^2 or d >= kSolidAngleWithin r, i.e. from
 // r + min(sqrt(area / kMinSphericalSampleArea), kSolidAngleWithin r) on.
-TriangleReach triangle_reach(const EmissiveTriangle& t) {
+void set_area_from(EmissiveTriangle& t) {
   const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
-  const vec3 centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
-  const float r2 = std::max(glm::dot(t.p0 - centre, t.p0 - centre),
-                            std::max(glm::dot(v1 - centre, v1 - centre), glm::dot(v2 - centre, v2 - centre)));
+  t.centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
+  const float r2 = std::max(glm::dot(t.p0 - t.centre, t.p0 - t.centre),
+                            std::max(glm::dot(v1 - t.centre, v1 - t.centre), glm::dot(v2 - t.centre, v2 - t.centre)));
   const float r = std::sqrt(r2);
   const float d = r + std::min(std::sqrt(t.area / kMinSphericalSampleArea), kSolidAngleWithin * r);
-  return {centre, d * d};
+  t.area_from2 = d * d;
 }
 
 // Solid angle of triangle t from p when sample() samples it by solid angle,
@@ -157,10 +157,9 @@ TriangleReach triangle_reach(const EmissiveTriangle& t) {
 // sample() and pdf_triangle() decide with this one function. near_plane (if
 // given): p is within 1% of its distance to the corners from the
 // triangle's plane, where sample_spherical_triangle needs double precision.
-float spherical_sampling_area(const EmissiveTriangle& t, const TriangleReach& reach, const vec3& p, vec3 corners[3],
-                              bool* near_plane = nullptr) {
-  const vec3 to_centre = p - reach.centre;
-  if (glm::dot(to_centre, to_centre) > reach.area_from2) return 0.0f;
+float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3], bool* near_plane = nullptr) {
+  const vec3 to_centre = p - t.centre;
+  if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
   // A point in the triangle's plane (on the emitter itself, or on its other
   // triangles) receives nothing from it; its corners then lie on one great
   // circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
@@ -352,8 +351,7 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
     bvh_power += b.phi;
   }
   bvh_.build(bounds);
-  triangle_reach_.resize(triangles_.size());
-  for (size_t k = 0; k < triangles_.size(); ++k) triangle_reach_[k] = triangle_reach(triangles_[k]);
+  for (EmissiveTriangle& t : triangles_) set_area_from(t);
   if (!bvh_.empty()) {
     top_entries_.push_back(kTopBVH);
     top_weights.push_back(float(bvh_power));
@@ -409,7 +407,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     const EmissiveTriangle& t = triangles_[entry - nl];
     vec3 corners[3];
     bool near_plane = true;
-    const float omega = spherical_sampling_area(t, triangle_reach_[entry - nl], p, corners, &near_plane);
+    const float omega = spherical_sampling_area(t, p, corners, &near_plane);
     vec3 q;
     float dist2;
     if (omega > 0.0f) {
@@ -557,7 +555,7 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
   const float pmf = selection_pmf(uint32_t(lights_.size()) + t, p, n);
   if (pmf <= 0.0f) return 0.0f;
   vec3 corners[3];
-  const float omega = spherical_sampling_area(triangles_[t], triangle_reach_[t], p, corners);
+  const float omega = spherical_sampling_area(triangles_[t], p, corners);
   return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * triangles_[t].area);
 }
 

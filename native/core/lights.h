@@ -64,14 +64,11 @@ struct EmissiveTriangle {
   // BVH tests them in its instance's space (large when the mesh's own
   // coordinates are large, whatever the world position).
   float local_error = 0.0f;
-};
-
-// What sample() decides an emissive triangle's sampling by, per triangle:
-// its centre, and the squared distance from it beyond which it is sampled
-// by area (lights.cpp, spherical_sampling_area).
-struct TriangleReach {
-  vec3 centre;
-  float area_from2;
+  // Set by LightSampler::build: the centre, and the squared distance from it
+  // beyond which sample() samples the triangle by area (lights.cpp,
+  // spherical_sampling_area), next to the corners that sampling reads.
+  vec3 centre{0.0f};
+  float area_from2 = 0.0f;
 };
 
 struct LightSample {
@@ -129,7 +126,6 @@ class LightSampler {
   bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls) const;
   std::vector<Light> lights_;
   std::vector<EmissiveTriangle> triangles_;
-  std::vector<TriangleReach> triangle_reach_;  // per triangle
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
   std::vector<uint32_t> triangle_order_; // key rank -> triangle index
   std::vector<uint32_t> hittable_lights_;  // area lights, and point/spot lights with a radius
