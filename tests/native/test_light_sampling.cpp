@@ -339,15 +339,33 @@ TEST(LightBVH, PmfSumsToOneAndMatchesWhatSamplePicks) {
   }
 }
 
+// Random light bounds for the importance tests: a box around a point of
+// [-2, 2]^3 (the point alone when `point`) with a random cone axis; the
+// caller sets the power and the angles.
+struct RandomBounds {
+  std::mt19937 rng;
+  std::uniform_real_distribution<float> U{0.0f, 1.0f};
+  explicit RandomBounds(uint32_t seed) : rng(seed) {}
+  float u() { return U(rng); }
+  vec3 unit() { return glm::normalize(vec3(u() - 0.5f, u() - 0.5f, u() - 0.5f)); }
+  LightBounds box(bool point) {
+    LightBounds b;
+    const vec3 c(u() * 4 - 2, u() * 4 - 2, u() * 4 - 2);
+    const float r = point ? 0.0f : u();
+    b.bounds.grow(c - r * vec3(u(), u(), u()));
+    b.bounds.grow(c + r * vec3(u(), u(), u()));
+    b.w = unit();
+    return b;
+  }
+};
+
 // A node weighs its eight children in SIMD lanes (one AVX2 pass, or two SSE2
 // passes of four): the same operations as the scalar
 // ImportanceBounds::importance, so the same values, on bounds of every kind
 // (points, boxes, cones, two-sided, dark, empty lanes) seen from inside,
 // outside and their centre, with and without a receiver normal.
 TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  RandomBounds rb(5);
   const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
   int nonzero = 0;
   for (int trial = 0; trial < 5000; ++trial) {
@@ -355,21 +373,16 @@ TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
     ImportanceBounds8 eight;
     const int used = trial % 11 == 0 ? 3 : 8;  // the other lanes stay empty
     for (int k = 0; k < used; ++k) {
-      LightBounds b;
-      const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
-      const float r = trial % 5 == 0 ? 0.0f : U(rng);
-      b.bounds.grow(c - r * vec3(U(rng), U(rng), U(rng)));
-      b.bounds.grow(c + r * vec3(U(rng), U(rng), U(rng)));
-      b.w = unit();
-      b.phi = k == 3 && trial % 2 ? 0.0f : 0.1f + 10.0f * U(rng);
-      b.cos_theta_o = trial % 3 == 0 ? -1.0f : 2.0f * U(rng) - 1.0f;
+      LightBounds b = rb.box(trial % 5 == 0);
+      b.phi = k == 3 && trial % 2 ? 0.0f : 0.1f + 10.0f * rb.u();
+      b.cos_theta_o = trial % 3 == 0 ? -1.0f : 2.0f * rb.u() - 1.0f;
       b.cos_theta_e = trial % 4 == 0 ? 0.0f : std::cos(1e-3f);
       b.two_sided = (trial + k) % 2 == 0;
       lanes[k] = ImportanceBounds(b);
       eight.set(k, lanes[k]);
     }
-    const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
-    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
+    const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(rb.u() * 6 - 3, rb.u() * 6 - 3, rb.u() * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : rb.unit();
     alignas(32) float sse2[8], avx[8], chosen[8];
     eight.importance_sse2(p, n, sse2);
     eight.importance(p, n, chosen);
@@ -391,24 +404,17 @@ TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
 // angle form, here in double with the angles themselves, within rounding;
 // and 0 only where that form says the bounds cannot light p (conservative).
 TEST(LightBVH, ImportanceEqualsTheAngleForm) {
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  RandomBounds rb(11);
   int lit = 0, unlit = 0;
   for (int trial = 0; trial < 200000; ++trial) {
-    LightBounds b;
-    const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
-    const float r = trial % 5 == 0 ? 0.0f : U(rng);
-    b.bounds.grow(c - r * vec3(U(rng), U(rng), U(rng)));
-    b.bounds.grow(c + r * vec3(U(rng), U(rng), U(rng)));
-    b.w = unit();
-    b.phi = 0.1f + 10.0f * U(rng);
-    b.cos_theta_o = trial % 3 == 0 ? -1.0f : trial % 3 == 1 ? 1.0f : 2.0f * U(rng) - 1.0f;
-    b.cos_theta_e = trial % 4 == 0 ? std::cos(1e-3f) : trial % 4 == 1 ? std::cos(1.2f * U(rng)) : 0.0f;
+    LightBounds b = rb.box(trial % 5 == 0);
+    b.phi = 0.1f + 10.0f * rb.u();
+    b.cos_theta_o = trial % 3 == 0 ? -1.0f : trial % 3 == 1 ? 1.0f : 2.0f * rb.u() - 1.0f;
+    b.cos_theta_e = trial % 4 == 0 ? std::cos(1e-3f) : trial % 4 == 1 ? std::cos(1.2f * rb.u()) : 0.0f;
     b.two_sided = trial % 2 == 0;
     const ImportanceBounds ib(b);
-    const vec3 p(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
-    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
+    const vec3 p(rb.u() * 6 - 3, rb.u() * 6 - 3, rb.u() * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : rb.unit();
     const float imp = ib.importance(p, n);
     // pbrt-v4 LightBounds::Importance in double.
     const glm::dvec3 t = glm::dvec3(p) - glm::dvec3(ib.centre);
