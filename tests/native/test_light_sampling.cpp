@@ -114,21 +114,23 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
   const int N = 1 << 16;
-  double sum = 0.0, sum2 = 0.0;
-  for (int i = 0; i < N; ++i) {
-    vec3 w;
-    ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(U(rng), U(rng)), &w));
-    EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
-    // Inside the triangle: on the inner side of all three great circles.
-    EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
-    EXPECT_GE(glm::dot(glm::cross(b, c), w) * glm::dot(glm::cross(b, c), a), -1e-6f);
-    EXPECT_GE(glm::dot(glm::cross(c, a), w) * glm::dot(glm::cross(c, a), b), -1e-6f);
-    const double x = glm::dot(w, n) * omega;
-    sum += x, sum2 += x * x;
-  }
-  const double mean = sum / N, se = std::sqrt((sum2 / N - mean * mean) / N);
   const double exact = polygon_irradiance({v[0], v[1], v[2]}, p, n);
-  EXPECT_NEAR(mean, exact, 4.0 * se + 1e-4 * exact);
+  for (bool near_plane : {true, false}) {  // double and float
+    double sum = 0.0, sum2 = 0.0;
+    for (int i = 0; i < N; ++i) {
+      vec3 w;
+      ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(U(rng), U(rng)), &w, near_plane));
+      EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
+      // Inside the triangle: on the inner side of all three great circles.
+      EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
+      EXPECT_GE(glm::dot(glm::cross(b, c), w) * glm::dot(glm::cross(b, c), a), -1e-6f);
+      EXPECT_GE(glm::dot(glm::cross(c, a), w) * glm::dot(glm::cross(c, a), b), -1e-6f);
+      const double x = glm::dot(w, n) * omega;
+      sum += x, sum2 += x * x;
+    }
+    const double mean = sum / N, se = std::sqrt((sum2 / N - mean * mean) / N);
+    EXPECT_NEAR(mean, exact, 4.0 * se + 1e-4 * exact) << "near_plane " << near_plane;
+  }
   // The solid angle itself, against Girard's angle excess in double precision.
   const glm::dvec3 A(a), B(b), C(c);
   auto corner = [](const glm::dvec3& x, const glm::dvec3& y, const glm::dvec3& z) {
