@@ -15,14 +15,6 @@ namespace {
 
 float safe_acos(float c) { return std::acos(std::clamp(c, -1.0f, 1.0f)); }
 
-// cos(max(0, a - b)) and sin(max(0, a - b)) from the sines and cosines of a and b.
-float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
-  return cos_a > cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
-}
-float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
-  return cos_a > cos_b ? 0.0f : sin_a * cos_b - cos_a * sin_b;
-}
-
 // Rotation of v by angle theta about the unit axis k (Rodrigues).
 vec3 rotate(const vec3& v, const vec3& k, float theta) {
   const float c = std::cos(theta), s = std::sin(theta);
@@ -133,37 +125,42 @@ int bucket_index(float c, float lo, float scale, int buckets) {
 ImportanceBounds::ImportanceBounds(const LightBounds& lb)
     : centre(lb.bounds.center()), phi(lb.phi), w(lb.w), cos_theta_o(lb.cos_theta_o),
       sin_theta_o(safe_sqrt(1.0f - lb.cos_theta_o * lb.cos_theta_o)), cos_theta_e(lb.cos_theta_e),
-      radius2(0.25f * glm::dot(lb.bounds.extent(), lb.bounds.extent())),
-      min_dist2(0.5f * glm::length(lb.bounds.extent())), two_sided(lb.two_sided) {}
+      radius(0.5f * glm::length(lb.bounds.extent())), inv_min_dist2(1.0f / radius), two_sided(lb.two_sided) {}
 
+// pbrt-v4's LightBounds::Importance with every cosine and sine of an angle
+// at p kept multiplied by the distance D = |p - centre| (or by D^2 after
+// one product of two), so that no unit vector and no D are needed: for the
+// cone's axis cos_w D = w.(p - c), sin_w D = sqrt(D^2 - (cos_w D)^2); for
+// the bounding sphere sin_b D = r, cos_b D = sqrt(D^2 - r^2); one division
+// by D^2 at the end. Three square roots and one division where the unit
+// vector form took five and two. The clamped differences cos(max(0, a - b))
+// are 1 where a < b, tested on the scaled cosines (or, for theta_w < theta_o,
+// by the signed squares of w.(p - c) and cos_o D, which need no D).
 float ImportanceBounds::importance(const vec3& p, const vec3& n) const {
   if (phi <= 0.0f) return 0.0f;
-  const vec3 to_p = p - centre;
-  const float dist2 = glm::dot(to_p, to_p);
-  // Distance clamped to half the box diagonal: inside or close to the box the
-  // 1/d^2 would blow up on a bound, not on a light.
-  const float d2 = std::max(dist2, min_dist2);
-  const float inv_len = dist2 > 0.0f ? 1.0f / std::sqrt(dist2) : 0.0f;
-  const vec3 wi = dist2 > 0.0f ? to_p * inv_len : vec3(0.0f, 0.0f, 1.0f);
-  // Angle between the cone's axis and the direction to p, less the cone's
-  // spread theta_o and the box's own spread theta_b as seen from p (the
-  // half-angle of the cone from p that holds the bounding sphere; all
-  // directions from inside it).
-  float cos_w = glm::dot(w, wi);
-  if (two_sided) cos_w = std::abs(cos_w);
-  const float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
-  const bool inside = dist2 < radius2;
-  const float sin2_b = inside ? 0.0f : radius2 * (inv_len * inv_len);
-  const float cos_b = inside ? -1.0f : safe_sqrt(1.0f - sin2_b), sin_b = std::sqrt(sin2_b);
-  const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_theta_o, cos_theta_o);
-  const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_theta_o, cos_theta_o);
-  const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-  if (cos_p <= cos_theta_e) return 0.0f;
-  float imp = phi * cos_p / d2;
+  const vec3 t = p - centre;
+  const float dist2 = glm::dot(t, t);
+  const float inv_dist2 = 1.0f / dist2;
+  // 1 / d^2 with d^2 clamped to half the box diagonal: inside or close to
+  // the box the 1/d^2 would blow up on a bound, not on a light.
+  const float inv_d2 = std::min(inv_dist2, inv_min_dist2);
+  float cw = glm::dot(w, t);  // cos_w D
+  if (two_sided) cw = std::abs(cw);
+  const float sw = safe_sqrt(dist2 - cw * cw);  // sin_w D
+  // Directions from p into the cone of normals (theta_w < theta_o), or p
+  // inside the bounding sphere (every direction): cos theta' = 1.
+  const bool in_cone = cw * std::abs(cw) > cos_theta_o * std::abs(cos_theta_o) * dist2;
+  const bool inside = dist2 < radius * radius;
+  const float cb = safe_sqrt(dist2 - radius * radius);  // cos_b D outside
+  // theta_x = theta_w - theta_o, then theta' = theta_x - theta_b.
+  const float cx = cw * cos_theta_o + sw * sin_theta_o, sx = sw * cos_theta_o - cw * sin_theta_o;
+  const float cos_p = in_cone || inside || cx > cb ? 1.0f : (cx * cb + sx * radius) * inv_dist2;
+  if (!(cos_p > cos_theta_e)) return 0.0f;
+  float imp = phi * cos_p * inv_d2;
   // The receiver's cosine, bounded the same way (either side: BSDFs may transmit).
   if (n != vec3(0.0f)) {
-    const float cos_i = std::abs(glm::dot(wi, n)), sin_i = safe_sqrt(1.0f - cos_i * cos_i);
-    imp *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+    const float ci = std::abs(glm::dot(n, t)), si = safe_sqrt(dist2 - ci * ci);  // cos_i D, sin_i D
+    imp *= inside || ci > cb ? 1.0f : (ci * cb + si * radius) * inv_dist2;
   }
   return std::max(imp, 0.0f);
 }
@@ -172,7 +169,7 @@ void ImportanceBounds8::set(int k, const ImportanceBounds& b) {
   cx[k] = b.centre.x, cy[k] = b.centre.y, cz[k] = b.centre.z;
   wx[k] = b.w.x, wy[k] = b.w.y, wz[k] = b.w.z;
   phi[k] = b.phi, cos_o[k] = b.cos_theta_o, sin_o[k] = b.sin_theta_o, cos_e[k] = b.cos_theta_e;
-  radius2[k] = b.radius2, min_dist2[k] = b.min_dist2;
+  radius[k] = b.radius, inv_min_dist2[k] = b.inv_min_dist2;
   two_sided[k] = b.two_sided ? ~0u : 0u;
 }
 
@@ -190,6 +187,7 @@ struct Sse2Ops {  // every x86-64 CPU
   static T div(T a, T b) { return _mm_div_ps(a, b); }
   static T sqrt(T a) { return _mm_sqrt_ps(a); }
   static T max(T a, T b) { return _mm_max_ps(a, b); }
+  static T min(T a, T b) { return _mm_min_ps(a, b); }
   static T and_(T a, T b) { return _mm_and_ps(a, b); }
   static T andnot(T a, T b) { return _mm_andnot_ps(a, b); }
   static T or_(T a, T b) { return _mm_or_ps(a, b); }

@@ -35,8 +35,10 @@ struct ImportanceBounds {
   float phi = 0.0f;
   vec3 w{0.0f, 0.0f, 1.0f};
   float cos_theta_o = 1.0f, sin_theta_o = 0.0f, cos_theta_e = 0.0f;
-  float radius2 = 0.0f;    // squared radius of the box's bounding sphere
-  float min_dist2 = 0.0f;  // the squared distance is clamped to this (pbrt-v4: half the box's diagonal)
+  float radius = 0.0f;         // radius of the box's bounding sphere
+  // 1 / the least squared distance: pbrt-v4 clamps d^2 to half the box's
+  // diagonal, i.e. to the radius (a length, as pbrt-v4 has it)
+  float inv_min_dist2 = kInf;
   bool two_sided = false;
 
   ImportanceBounds() = default;
@@ -48,14 +50,13 @@ struct ImportanceBounds {
   float importance(const vec3& p, const vec3& n) const;
 };
 
-// Four ImportanceBounds side by side, one SSE lane each (structure of
-// arrays), so that a node's children are weighed in one pass. Lanes without
-// a child have phi 0 and importance 0.
-// The bounds of a light BVH node's children, one SIMD lane each.
+// The bounds of a light BVH node's children, one SIMD lane each (structure
+// of arrays), so that they are weighed in one pass. Lanes without a child
+// have phi 0 and importance 0.
 constexpr int kLightBVHWidth = 8;
 struct alignas(32) ImportanceBounds8 {
   float cx[8] = {}, cy[8] = {}, cz[8] = {}, wx[8] = {}, wy[8] = {}, wz[8] = {};
-  float phi[8] = {}, cos_o[8] = {}, sin_o[8] = {}, cos_e[8] = {}, radius2[8] = {}, min_dist2[8] = {};
+  float phi[8] = {}, cos_o[8] = {}, sin_o[8] = {}, cos_e[8] = {}, radius[8] = {}, inv_min_dist2[8] = {};
   uint32_t two_sided[8] = {};  // ~0u in a two-sided lane
 
   void set(int lane, const ImportanceBounds& b);

@@ -27,6 +27,7 @@ struct Avx2Ops {
   static T div(T a, T b) { return _mm256_div_ps(a, b); }
   static T sqrt(T a) { return _mm256_sqrt_ps(a); }
   static T max(T a, T b) { return _mm256_max_ps(a, b); }
+  static T min(T a, T b) { return _mm256_min_ps(a, b); }
   static T and_(T a, T b) { return _mm256_and_ps(a, b); }
   static T andnot(T a, T b) { return _mm256_andnot_ps(a, b); }
   static T or_(T a, T b) { return _mm256_or_ps(a, b); }

@@ -138,29 +138,38 @@ float shadow_end_error(const vec3& p, const vec3& q) {
 constexpr float kMinSphericalSampleArea = 3e-4f;
 constexpr float kSolidAngleWithin = 2.0f;
 
+// Sets t's centre and the squared distance from it beyond which sample()
+// samples t by area: its bounding sphere (centre, radius r) is then d > 0 away with
+// area < kMinSphericalSampleArea d^2 or d >= kSolidAngleWithin r, i.e. from
+// r + min(sqrt(area / kMinSphericalSampleArea), kSolidAngleWithin r) on.
+void set_area_from(EmissiveTriangle& t) {
+  const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
+  t.centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
+  const float r2 = std::max(glm::dot(t.p0 - t.centre, t.p0 - t.centre),
+                            std::max(glm::dot(v1 - t.centre, v1 - t.centre), glm::dot(v2 - t.centre, v2 - t.centre)));
+  const float r = std::sqrt(r2);
+  const float d = r + std::min(std::sqrt(t.area / kMinSphericalSampleArea), kSolidAngleWithin * r);
+  t.area_from2 = d * d;
+}
+
 // Solid angle of triangle t from p when sample() samples it by solid angle,
 // with its corners as unit vectors from p; 0 when it samples it by area.
 // sample() and pdf_triangle() decide with this one function. near_plane (if
 // given): p is within 1% of its distance to the corners from the
 // triangle's plane, where sample_spherical_triangle needs double precision.
 float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3], bool* near_plane = nullptr) {
-  const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
-  // Seen from at least d away, a triangle subtends at most area / d^2.
-  const vec3 centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
-  const float r2 = std::max(glm::dot(t.p0 - centre, t.p0 - centre),
-                            std::max(glm::dot(v1 - centre, v1 - centre), glm::dot(v2 - centre, v2 - centre)));
-  const float r = std::sqrt(r2), d = glm::length(p - centre) - r;
-  if (d > 0.0f && (t.area < kMinSphericalSampleArea * d * d || d >= kSolidAngleWithin * r)) return 0.0f;
+  const vec3 to_centre = p - t.centre;
+  if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
   // A point in the triangle's plane (on the emitter itself, or on its other
   // triangles) receives nothing from it; its corners then lie on one great
   // circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
   // it the zero cosine it should have.
   const float h = std::abs(glm::dot(p - t.p0, t.n));
   if (h <= 1e-5f * std::sqrt(t.area) + 1e-6f * (max_component(glm::abs(p)) + max_component(glm::abs(t.p0)))) return 0.0f;
-  const vec3 a = t.p0 - p, b = v1 - p, c = v2 - p;
+  const vec3 a = t.p0 - p, b = a + t.e1, c = a + t.e2;
   const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
   if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;
-  corners[0] = a / la, corners[1] = b / lb, corners[2] = c / lc;
+  corners[0] = a * (1.0f / la), corners[1] = b * (1.0f / lb), corners[2] = c * (1.0f / lc);
   if (near_plane) *near_plane = h < 0.01f * std::max(la, std::max(lb, lc));
   const float omega = spherical_triangle_area(corners[0], corners[1], corners[2]);
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
@@ -342,6 +351,7 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
     bvh_power += b.phi;
   }
   bvh_.build(bounds);
+  for (EmissiveTriangle& t : triangles_) set_area_from(t);
   if (!bvh_.empty()) {
     top_entries_.push_back(kTopBVH);
     top_weights.push_back(float(bvh_power));

@@ -64,6 +64,11 @@ struct EmissiveTriangle {
   // BVH tests them in its instance's space (large when the mesh's own
   // coordinates are large, whatever the world position).
   float local_error = 0.0f;
+  // Set by LightSampler::build: the centre, and the squared distance from it
+  // beyond which sample() samples the triangle by area (lights.cpp,
+  // spherical_sampling_area), next to the corners that sampling reads.
+  vec3 centre{0.0f};
+  float area_from2 = 0.0f;
 };
 
 struct LightSample {

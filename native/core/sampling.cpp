@@ -1,5 +1,7 @@
 #include "sampling.h"
 
+#include <type_traits>
+
 namespace tessera {
 
 namespace {
@@ -7,17 +9,22 @@ template <typename Real>
 bool sample_spherical_triangle_in(const vec3& a_, const vec3& b_, const vec3& c_, float area, vec2 u, vec3* w) {
   using dvec3 = glm::vec<3, Real>;
   if (!(area > 0.0f)) return false;
-  const dvec3 a = glm::normalize(dvec3(a_)), b = glm::normalize(dvec3(b_)), c = glm::normalize(dvec3(c_));
-  // Normals of the great circles through a and b, and through c and a.
-  dvec3 n_ab = glm::cross(a, b), n_ca = glm::cross(c, a);
-  const Real l_ab = glm::length(n_ab), l_ca = glm::length(n_ca);
-  if (!(l_ab > Real(0) && l_ca > Real(0))) return false;
-  n_ab /= l_ab, n_ca /= l_ca;
+  // The corners are unit vectors in float; in double they are normalised
+  // again, to double's precision.
+  dvec3 a(a_), b(b_), c(c_);
+  if constexpr (std::is_same_v<Real, double>) a = glm::normalize(a), b = glm::normalize(b), c = glm::normalize(c);
+  // Normals of the great circles through a and b, and through c and a
+  // (unnormalised: the angle between them needs only the product of their
+  // lengths, one division).
+  const dvec3 n_ab = glm::cross(a, b), n_ca = glm::cross(c, a);
+  const Real l = glm::length(n_ab) * glm::length(n_ca);
+  if (!(l > Real(0))) return false;
+  const Real inv_l = Real(1) / l;
   // The interior angle alpha at a, between those circles, as its cosine and
   // sine (the sine from the cross product stays accurate for thin corners,
   // where acos of the dot product would not).
-  const Real cos_alpha = std::clamp(-glm::dot(n_ab, n_ca), Real(-1), Real(1));
-  const Real sin_alpha = glm::length(glm::cross(n_ab, n_ca));
+  const Real cos_alpha = std::clamp(-glm::dot(n_ab, n_ca) * inv_l, Real(-1), Real(1));
+  const Real sin_alpha = glm::length(glm::cross(n_ab, n_ca)) * inv_l;
   if (!(sin_alpha > Real(0))) return false;
   // Sub-triangle (a, b, c') of area A' = u.x * area: Arvo's closed form for
   // the cosine of the arc from a to c' (pbrt-v4 A.5.5 with phi = A' + pi -

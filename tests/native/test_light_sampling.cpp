@@ -114,21 +114,23 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
   const int N = 1 << 16;
-  double sum = 0.0, sum2 = 0.0;
-  for (int i = 0; i < N; ++i) {
-    vec3 w;
-    ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(U(rng), U(rng)), &w));
-    EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
-    // Inside the triangle: on the inner side of all three great circles.
-    EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
-    EXPECT_GE(glm::dot(glm::cross(b, c), w) * glm::dot(glm::cross(b, c), a), -1e-6f);
-    EXPECT_GE(glm::dot(glm::cross(c, a), w) * glm::dot(glm::cross(c, a), b), -1e-6f);
-    const double x = glm::dot(w, n) * omega;
-    sum += x, sum2 += x * x;
-  }
-  const double mean = sum / N, se = std::sqrt((sum2 / N - mean * mean) / N);
   const double exact = polygon_irradiance({v[0], v[1], v[2]}, p, n);
-  EXPECT_NEAR(mean, exact, 4.0 * se + 1e-4 * exact);
+  for (bool near_plane : {true, false}) {  // double and float
+    double sum = 0.0, sum2 = 0.0;
+    for (int i = 0; i < N; ++i) {
+      vec3 w;
+      ASSERT_TRUE(sample_spherical_triangle(a, b, c, omega, vec2(U(rng), U(rng)), &w, near_plane));
+      EXPECT_NEAR(glm::length(w), 1.0f, 1e-5f);
+      // Inside the triangle: on the inner side of all three great circles.
+      EXPECT_GE(glm::dot(glm::cross(a, b), w) * glm::dot(glm::cross(a, b), c), -1e-6f);
+      EXPECT_GE(glm::dot(glm::cross(b, c), w) * glm::dot(glm::cross(b, c), a), -1e-6f);
+      EXPECT_GE(glm::dot(glm::cross(c, a), w) * glm::dot(glm::cross(c, a), b), -1e-6f);
+      const double x = glm::dot(w, n) * omega;
+      sum += x, sum2 += x * x;
+    }
+    const double mean = sum / N, se = std::sqrt((sum2 / N - mean * mean) / N);
+    EXPECT_NEAR(mean, exact, 4.0 * se + 1e-4 * exact) << "near_plane " << near_plane;
+  }
   // The solid angle itself, against Girard's angle excess in double precision.
   const glm::dvec3 A(a), B(b), C(c);
   auto corner = [](const glm::dvec3& x, const glm::dvec3& y, const glm::dvec3& z) {
@@ -339,15 +341,33 @@ TEST(LightBVH, PmfSumsToOneAndMatchesWhatSamplePicks) {
   }
 }
 
+// Random light bounds for the importance tests: a box around a point of
+// [-2, 2]^3 (the point alone when `point`) with a random cone axis; the
+// caller sets the power and the angles.
+struct RandomBounds {
+  std::mt19937 rng;
+  std::uniform_real_distribution<float> U{0.0f, 1.0f};
+  explicit RandomBounds(uint32_t seed) : rng(seed) {}
+  float u() { return U(rng); }
+  vec3 unit() { return glm::normalize(vec3(u() - 0.5f, u() - 0.5f, u() - 0.5f)); }
+  LightBounds box(bool point) {
+    LightBounds b;
+    const vec3 c(u() * 4 - 2, u() * 4 - 2, u() * 4 - 2);
+    const float r = point ? 0.0f : u();
+    b.bounds.grow(c - r * vec3(u(), u(), u()));
+    b.bounds.grow(c + r * vec3(u(), u(), u()));
+    b.w = unit();
+    return b;
+  }
+};
+
 // A node weighs its eight children in SIMD lanes (one AVX2 pass, or two SSE2
 // passes of four): the same operations as the scalar
 // ImportanceBounds::importance, so the same values, on bounds of every kind
 // (points, boxes, cones, two-sided, dark, empty lanes) seen from inside,
 // outside and their centre, with and without a receiver normal.
 TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  auto unit = [&] { return glm::normalize(vec3(U(rng) - 0.5f, U(rng) - 0.5f, U(rng) - 0.5f)); };
+  RandomBounds rb(5);
   const bool avx2 = cpu_simd_level() == SimdLevel::AVX2;
   int nonzero = 0;
   for (int trial = 0; trial < 5000; ++trial) {
@@ -355,21 +375,16 @@ TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
     ImportanceBounds8 eight;
     const int used = trial % 11 == 0 ? 3 : 8;  // the other lanes stay empty
     for (int k = 0; k < used; ++k) {
-      LightBounds b;
-      const vec3 c(U(rng) * 4 - 2, U(rng) * 4 - 2, U(rng) * 4 - 2);
-      const float r = trial % 5 == 0 ? 0.0f : U(rng);
-      b.bounds.grow(c - r * vec3(U(rng), U(rng), U(rng)));
-      b.bounds.grow(c + r * vec3(U(rng), U(rng), U(rng)));
-      b.w = unit();
-      b.phi = k == 3 && trial % 2 ? 0.0f : 0.1f + 10.0f * U(rng);
-      b.cos_theta_o = trial % 3 == 0 ? -1.0f : 2.0f * U(rng) - 1.0f;
+      LightBounds b = rb.box(trial % 5 == 0);
+      b.phi = k == 3 && trial % 2 ? 0.0f : 0.1f + 10.0f * rb.u();
+      b.cos_theta_o = trial % 3 == 0 ? -1.0f : 2.0f * rb.u() - 1.0f;
       b.cos_theta_e = trial % 4 == 0 ? 0.0f : std::cos(1e-3f);
       b.two_sided = (trial + k) % 2 == 0;
       lanes[k] = ImportanceBounds(b);
       eight.set(k, lanes[k]);
     }
-    const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(U(rng) * 6 - 3, U(rng) * 6 - 3, U(rng) * 6 - 3);
-    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : unit();
+    const vec3 p = trial % 7 == 0 ? lanes[0].centre : vec3(rb.u() * 6 - 3, rb.u() * 6 - 3, rb.u() * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : rb.unit();
     alignas(32) float sse2[8], avx[8], chosen[8];
     eight.importance_sse2(p, n, sse2);
     eight.importance(p, n, chosen);
@@ -384,6 +399,45 @@ TEST(LightBVH, EightLaneImportanceEqualsTheScalarOne) {
     }
   }
   EXPECT_GT(nonzero, 10000);
+}
+
+// ImportanceBounds::importance works with cosines and sines scaled by the
+// distance (no unit vector, one division): the same function as pbrt-v4's
+// angle form, here in double with the angles themselves, within rounding;
+// and 0 only where that form says the bounds cannot light p (conservative).
+TEST(LightBVH, ImportanceEqualsTheAngleForm) {
+  RandomBounds rb(11);
+  int lit = 0, unlit = 0;
+  for (int trial = 0; trial < 200000; ++trial) {
+    LightBounds b = rb.box(trial % 5 == 0);
+    b.phi = 0.1f + 10.0f * rb.u();
+    b.cos_theta_o = trial % 3 == 0 ? -1.0f : trial % 3 == 1 ? 1.0f : 2.0f * rb.u() - 1.0f;
+    b.cos_theta_e = trial % 4 == 0 ? std::cos(1e-3f) : trial % 4 == 1 ? std::cos(1.2f * rb.u()) : 0.0f;
+    b.two_sided = trial % 2 == 0;
+    const ImportanceBounds ib(b);
+    const vec3 p(rb.u() * 6 - 3, rb.u() * 6 - 3, rb.u() * 6 - 3);
+    const vec3 n = trial % 4 == 1 ? vec3(0.0f) : rb.unit();
+    const float imp = ib.importance(p, n);
+    // pbrt-v4 LightBounds::Importance in double.
+    const glm::dvec3 t = glm::dvec3(p) - glm::dvec3(ib.centre);
+    const double d = glm::length(t), rad = ib.radius;
+    const glm::dvec3 wi = t / d;
+    double cos_w = glm::dot(glm::dvec3(b.w), wi);
+    if (b.two_sided) cos_w = std::abs(cos_w);
+    const double theta_b = d < rad ? M_PI : std::asin(rad / d);
+    const double theta_x = std::max(0.0, std::acos(std::clamp(cos_w, -1.0, 1.0)) - std::acos(double(b.cos_theta_o)));
+    const double cos_p = std::cos(std::max(0.0, theta_x - theta_b));
+    const double scale = b.phi / std::max(d * d, rad);
+    double ref = cos_p > b.cos_theta_e ? scale * cos_p : 0.0;
+    if (n != vec3(0.0f))
+      ref *= std::cos(std::max(0.0, std::acos(std::abs(glm::dot(glm::dvec3(n), wi))) - theta_b));
+    if (cos_p > b.cos_theta_e + 1e-3) ASSERT_GT(imp, 0.0f) << "trial " << trial;
+    if (cos_p < b.cos_theta_e - 1e-3) ASSERT_EQ(imp, 0.0f) << "trial " << trial;
+    if (std::abs(cos_p - b.cos_theta_e) > 1e-3) ASSERT_NEAR(imp, ref, 1e-3 * scale) << "trial " << trial;
+    (imp > 0.0f ? lit : unlit)++;
+  }
+  EXPECT_GT(lit, 50000);
+  EXPECT_GT(unlit, 20000);
 }
 
 // Many lights: the BVH picks the ones that matter at the point, so the
