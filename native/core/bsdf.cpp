@@ -14,7 +14,7 @@ float schlick_weight(float c) {
 
 // Cycles' interpolate_fresnel_color: the dielectric Fresnel at the
 // microfacet, renormalised so that it starts at cspec0 and reaches 1;
-// f0 = fresnel_dielectric(1, ior), which the lobe keeps.
+// f0 = fresnel_dielectric(1, ior).
 vec3 interpolate_fresnel(float cos_ih, float ior, float f0, const vec3& cspec0) {
   float fh = (fresnel_dielectric(cos_ih, ior) - f0) / (1.0f - f0);
   return cspec0 * (1.0f - fh) + vec3(fh);
@@ -152,8 +152,9 @@ void BSDF::add_principled(const Closure& c, bool back_face) {
     l.k = spec_weight;
     l.ggx = GGX{alpha};
     l.cspec0 = cspec0;
-    l.spec_ior = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
-    l.spec_f0 = fresnel_dielectric(1.0f, l.spec_ior);
+    // The IOR whose reflectance at normal incidence, ((ior - 1) / (ior + 1))^2, is 0.08 specular.
+    l.spec_f0 = std::min(0.08f * specular, 0.999f);
+    l.spec_ior = 2.0f / (1.0f - std::sqrt(l.spec_f0)) - 1.0f;
   }
   if (k_reflect > 0.0f) {  // untinted, as Cycles 3.x's principled glass reflection
     Lobe& l = add_lobe(Lobe::kReflection, k_reflect);

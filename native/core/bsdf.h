@@ -106,7 +106,7 @@ class BSDF {
     float a, b;
     vec3 cspec0;
     float spec_ior;
-    float spec_f0;        // kSpecular: fresnel_dielectric(1, spec_ior), where interpolate_fresnel starts
+    float spec_f0;        // kSpecular: fresnel_dielectric(1, spec_ior), 0.08 specular
     float eta;
     vec3 ms;              // Oren-Nayar's multiple scattering, Ems (1 - E(wo)) (Cycles 4.3 on; else 0)
     vec3 f0, f82_b;       // Fresnel at normal incidence; F82-tint's b
