@@ -114,7 +114,7 @@ class BSDF {
     float fresnel_ior;    // the IOR of kDielectric and kRealRemapped (relative: inverted on back faces for glass)
     float energy_scale;   // Multiscatter GGX: 1 / E(mu) (else 1)
     float lambda_o;       // smooth GGX lobes: Smith's Lambda(wo), shared by every eval
-    bool is_delta, is_reflect, is_transmit;  // cached by the constructor for f() and pdf()
+    bool is_delta, is_reflect, is_transmit;  // cached by the constructor for eval()
     bool delta() const {
       return type == kTransparent || (type != kBurley && type != kOrenNayar && ggx.alpha <= kSmoothAlpha);
     }
