@@ -26,8 +26,8 @@ inline vec3 sample_cosine_hemisphere(vec2 u) {
 inline vec3 sample_uniform_sphere(vec2 u) {
   float z = 1.0f - 2.0f * u.x;
   float r = safe_sqrt(1.0f - z * z);
-  float phi = 2.0f * kPi * u.y;
-  return vec3(r * std::cos(phi), r * std::sin(phi), z);
+  const vec2 cs = r * cos_sin_2pi(u.y);
+  return vec3(cs.x, cs.y, z);
 }
 constexpr float kUniformSpherePdf = 1.0f / (4.0f * kPi);
 
