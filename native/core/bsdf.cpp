@@ -13,9 +13,9 @@ float schlick_weight(float c) {
 }
 
 // Cycles' interpolate_fresnel_color: the dielectric Fresnel at the
-// microfacet, renormalised so that it starts at cspec0 and reaches 1.
-vec3 interpolate_fresnel(float cos_ih, float ior, const vec3& cspec0) {
-  float f0 = fresnel_dielectric(1.0f, ior);
+// microfacet, renormalised so that it starts at cspec0 and reaches 1;
+// f0 = fresnel_dielectric(1, ior).
+vec3 interpolate_fresnel(float cos_ih, float ior, float f0, const vec3& cspec0) {
   float fh = (fresnel_dielectric(cos_ih, ior) - f0) / (1.0f - f0);
   return cspec0 * (1.0f - fh) + vec3(fh);
 }
@@ -152,7 +152,9 @@ void BSDF::add_principled(const Closure& c, bool back_face) {
     l.k = spec_weight;
     l.ggx = GGX{alpha};
     l.cspec0 = cspec0;
-    l.spec_ior = 2.0f / (1.0f - std::sqrt(std::min(0.08f * specular, 0.999f))) - 1.0f;
+    // The IOR whose reflectance at normal incidence, ((ior - 1) / (ior + 1))^2, is 0.08 specular.
+    l.spec_f0 = std::min(0.08f * specular, 0.999f);
+    l.spec_ior = 2.0f / (1.0f - std::sqrt(l.spec_f0)) - 1.0f;
   }
   if (k_reflect > 0.0f) {  // untinted, as Cycles 3.x's principled glass reflection
     Lobe& l = add_lobe(Lobe::kReflection, k_reflect);
@@ -529,6 +531,7 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
       l.is_delta = l.delta();
       l.is_reflect = l.reflects();
       l.is_transmit = l.transmits();
+      if (l.type != Lobe::kBurley && l.type != Lobe::kOrenNayar && !l.is_delta) l.lambda_o = l.ggx.lambda(wo_);
       if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true;
     }
   } else {
@@ -536,12 +539,20 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
   }
 }
 
-vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
+// The lobe's value for wi and, in *pdf, the density with which the lobe
+// samples wi (before its probability): the half vector, D and Lambda(wi) of
+// a GGX lobe serve both, Lambda(wo) comes from the constructor, and the
+// visible-normal density of a reflection, G1(wo) D(wm) |wo.wm| / (wo.z 4 |wo.wm|),
+// is G1(wo) D(wm) / (4 wo.z).
+vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi, float* pdf) const {
   const vec3& wo = wo_;
+  *pdf = 0.0f;
   switch (l.type) {
     case Lobe::kBurley: {
       // Cycles 3.x principled diffuse (Burley 2012 with its retro-reflection term).
-      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
+      if (wi.z <= 0.0f) return vec3(0.0f);
+      *pdf = wi.z * kInvPi;
+      if (wo.z <= 0.0f) return vec3(0.0f);
       float fl = schlick_weight(wi.z), fv = schlick_weight(wo.z);
       float f = (1.0f - 0.5f * fv) * (1.0f - 0.5f * fl);
       float rr = l.a * (glm::dot(wi, wo) + 1.0f);
@@ -551,60 +562,66 @@ vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
     case Lobe::kOrenNayar: {
       // Cycles' bsdf_oren_nayar (the "qualitative" model, Oren and Nayar 1994):
       // f = A + B max(0, cos(phi_i - phi_o)) sin(a) tan(b), written with dot products.
-      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
+      if (wi.z <= 0.0f) return vec3(0.0f);
+      *pdf = wi.z * kInvPi;
+      if (wo.z <= 0.0f) return vec3(0.0f);
       if (l.b <= 0.0f) return l.tint * l.a;
       float t = glm::dot(wi, wo) - wi.z * wo.z;
       if (t > 0.0f) t /= std::max(wi.z, wo.z) + std::numeric_limits<float>::min();
       const float E_i = l.a * kPi + l.b * oren_nayar_G(wi.z);
       return l.tint * (vec3(l.a + l.b * t) + l.ms * (1.0f - E_i));
     }
-    case Lobe::kSpecular: {
-      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
-      vec3 wm = wi + wo;
-      if (glm::dot(wm, wm) == 0.0f) return vec3(0.0f);
-      wm = glm::normalize(wm);
-      vec3 F = interpolate_fresnel(glm::dot(wi, wm), l.spec_ior, l.cspec0);
-      return l.k * F * (l.ggx.D(wm) * l.ggx.G(wo, wi) / (4.0f * wi.z * wo.z));
-    }
-    case Lobe::kReflection: {
-      if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
-      vec3 wm = glm::normalize(wi + wo);
-      return l.tint * (l.k * l.ggx.D(wm) * l.ggx.G(wo, wi) / (4.0f * wi.z * wo.z));
-    }
-    case Lobe::kRefraction: {
-      if (wi.z >= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
-      // Generalised half vector (Walter et al. 2007), facing wo's side.
-      vec3 wm = glm::normalize(wi * l.eta + wo);
-      if (wm.z < 0.0f) wm = -wm;
-      float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
-      if (dot_i >= 0.0f || dot_o <= 0.0f) return vec3(0.0f);
-      float denom = sqr(dot_i + dot_o / l.eta);
-      float ft = l.ggx.D(wm) * l.ggx.G(wo, wi) * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
-      // No 1/eta^2 radiance scaling, as in Cycles.
-      return l.tint * (l.k * ft);
-    }
+    case Lobe::kSpecular:
+    case Lobe::kReflection:
     case Lobe::kMicrofacet: {
       if (wi.z <= 0.0f || wo.z <= 0.0f) return vec3(0.0f);
       const vec3 wm = glm::normalize(wi + wo);
-      return l.tint * fresnel(l, glm::dot(wo, wm)) *
-             (l.energy_scale * l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) / (4.0f * wi.z * wo.z));
-    }
-    case Lobe::kGlass: {
-      if (wo.z <= 0.0f || wi.z == 0.0f) return vec3(0.0f);
-      vec3 R, T;
-      if (wi.z > 0.0f) {
-        const vec3 wm = glm::normalize(wi + wo);
-        glass_fresnel(l, glm::dot(wo, wm), R, T);
-        return l.tint * R * (l.energy_scale * l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) / (4.0f * wi.z * wo.z));
+      const float D = l.ggx.D(wm), lambda_i = l.ggx.lambda(wi);
+      const float G1_o = 1.0f / (1.0f + l.lambda_o);
+      *pdf = G1_o * D / (4.0f * wo.z);
+      if (l.type == Lobe::kMicrofacet) {
+        const float G = 1.0f / (1.0f + l.lambda_o + lambda_i);  // height-correlated (Cycles 4.x)
+        return l.tint * fresnel(l, glm::dot(wo, wm)) * (l.energy_scale * D * G / (4.0f * wi.z * wo.z));
       }
+      const float G = G1_o * (1.0f / (1.0f + lambda_i));  // separable (Cycles 3.x)
+      if (l.type == Lobe::kSpecular)
+        return l.k * interpolate_fresnel(glm::dot(wi, wm), l.spec_ior, l.spec_f0, l.cspec0) *
+               (D * G / (4.0f * wi.z * wo.z));
+      return l.tint * (l.k * D * G / (4.0f * wi.z * wo.z));
+    }
+    case Lobe::kRefraction:
+    case Lobe::kGlass: {
+      if (wo.z <= 0.0f || wi.z == 0.0f || (l.type == Lobe::kRefraction && wi.z > 0.0f)) return vec3(0.0f);
+      const float G1_o = 1.0f / (1.0f + l.lambda_o);
+      if (wi.z > 0.0f) {  // glass reflection
+        const vec3 wm = glm::normalize(wi + wo);
+        vec3 R, T;
+        glass_fresnel(l, glm::dot(wo, wm), R, T);
+        const float sum = average(R + T);
+        const float D = l.ggx.D(wm), G = 1.0f / (1.0f + l.lambda_o + l.ggx.lambda(wi));
+        // The visible-normal density times the probability of reflecting at that microfacet.
+        if (sum > 0.0f) *pdf = G1_o * D / (4.0f * wo.z) * (average(R) / sum);
+        return l.tint * R * (l.energy_scale * D * G / (4.0f * wi.z * wo.z));
+      }
+      // Generalised half vector (Walter et al. 2007), facing wo's side.
       vec3 wm = glm::normalize(wi * l.eta + wo);
       if (wm.z < 0.0f) wm = -wm;
       const float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
       if (dot_i >= 0.0f || dot_o <= 0.0f) return vec3(0.0f);
-      glass_fresnel(l, dot_o, R, T);
       const float denom = sqr(dot_i + dot_o / l.eta);
-      const float ft = l.ggx.D(wm) * l.ggx.G_correlated(wo, wi) * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
-      return l.tint * T * (l.energy_scale * ft);
+      const float D = l.ggx.D(wm), lambda_i = l.ggx.lambda(wi);
+      const float pdf_wm = G1_o / wo.z * D * dot_o * (std::abs(dot_i) / denom);
+      const float ft_D = D * std::abs(dot_i * dot_o / (wi.z * wo.z * denom));
+      if (l.type == Lobe::kRefraction) {
+        *pdf = pdf_wm;
+        // No 1/eta^2 radiance scaling, as in Cycles.
+        return l.tint * (l.k * ft_D * (G1_o * (1.0f / (1.0f + lambda_i))));
+      }
+      vec3 R, T;
+      glass_fresnel(l, dot_o, R, T);
+      const float sum = average(R + T);
+      if (sum > 0.0f) *pdf = pdf_wm * (average(T) / sum);
+      return l.tint * T * (l.energy_scale * ft_D * (1.0f / (1.0f + l.lambda_o + lambda_i)));
     }
     case Lobe::kTransparent:
       break;
@@ -612,79 +629,21 @@ vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi) const {
   return vec3(0.0f);
 }
 
-float BSDF::pdf_lobe(const Lobe& l, const vec3& wi) const {
-  const vec3& wo = wo_;
-  switch (l.type) {
-    case Lobe::kBurley:
-    case Lobe::kOrenNayar:
-      return wi.z > 0.0f ? wi.z * kInvPi : 0.0f;
-    case Lobe::kSpecular:
-    case Lobe::kReflection:
-    case Lobe::kMicrofacet: {
-      if (wi.z <= 0.0f || wo.z <= 0.0f) return 0.0f;
-      vec3 wm = glm::normalize(wi + wo);
-      return l.ggx.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm)));
-    }
-    case Lobe::kGlass: {
-      // The visible-normal density, times the probability of reflecting or
-      // refracting at that microfacet: avg(R) / avg(R + T).
-      if (wo.z <= 0.0f || wi.z == 0.0f) return 0.0f;
-      vec3 R, T;
-      if (wi.z > 0.0f) {
-        const vec3 wm = glm::normalize(wi + wo);
-        glass_fresnel(l, glm::dot(wo, wm), R, T);
-        const float sum = average(R + T);
-        if (!(sum > 0.0f)) return 0.0f;
-        return l.ggx.pdf_visible(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm))) * (average(R) / sum);
-      }
-      vec3 wm = glm::normalize(wi * l.eta + wo);
-      if (wm.z < 0.0f) wm = -wm;
-      const float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
-      if (dot_i >= 0.0f || dot_o <= 0.0f) return 0.0f;
-      glass_fresnel(l, dot_o, R, T);
-      const float sum = average(R + T);
-      if (!(sum > 0.0f)) return 0.0f;
-      const float dwm_dwi = std::abs(dot_i) / sqr(dot_i + dot_o / l.eta);
-      return l.ggx.pdf_visible(wo, wm) * dwm_dwi * (average(T) / sum);
-    }
-    case Lobe::kRefraction: {
-      if (wi.z >= 0.0f || wo.z <= 0.0f) return 0.0f;
-      vec3 wm = glm::normalize(wi * l.eta + wo);
-      if (wm.z < 0.0f) wm = -wm;
-      float dot_i = glm::dot(wi, wm), dot_o = glm::dot(wo, wm);
-      if (dot_i >= 0.0f || dot_o <= 0.0f) return 0.0f;
-      float dwm_dwi = std::abs(dot_i) / sqr(dot_i + dot_o / l.eta);
-      return l.ggx.pdf_visible(wo, wm) * dwm_dwi;
-    }
-    case Lobe::kTransparent:
-      break;
-  }
-  return 0.0f;
-}
-
-vec3 BSDF::f(const vec3& wi_world) const {
+vec3 BSDF::eval(const vec3& wi_world, float* pdf) const {
   const vec3 wi = frame_.to_local(wi_world);
   const bool reflect_side = same_side(wi_world);
   vec3 sum(0.0f);
+  float p = 0.0f;
   for (int i = 0; i < num_lobes_; ++i) {
     const Lobe& l = lobes_[i];
     // The geometric side decides reflection vs transmission (no light leaks).
     if (l.prob == 0.0f || l.is_delta || !(reflect_side ? l.is_reflect : l.is_transmit)) continue;
-    sum += eval_lobe(l, wi);
+    float lobe_pdf;
+    sum += eval_lobe(l, wi, &lobe_pdf);
+    p += l.prob * lobe_pdf;
   }
+  *pdf = p;
   return sum;
-}
-
-float BSDF::pdf(const vec3& wi_world) const {
-  const vec3 wi = frame_.to_local(wi_world);
-  const bool reflect_side = same_side(wi_world);
-  float p = 0.0f;
-  for (int i = 0; i < num_lobes_; ++i) {
-    const Lobe& l = lobes_[i];
-    if (l.prob == 0.0f || l.is_delta || !(reflect_side ? l.is_reflect : l.is_transmit)) continue;
-    p += l.prob * pdf_lobe(l, wi);
-  }
-  return p;
 }
 
 bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
@@ -750,8 +709,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
       return s.pdf > 0.0f && max_component(s.f) > 0.0f;
     }
     s.delta = false;
-    s.f = f(s.wi);
-    s.pdf = pdf(s.wi);
+    s.f = eval(s.wi, &s.pdf);
     return s.pdf > 0.0f && max_component(s.f) > 0.0f;
   }
   if (l.delta()) {
@@ -763,7 +721,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
     s.wi = frame_.to_world(wi);
     if (l.transmits() == same_side(s.wi)) return false;
     const float cos_i = std::abs(wi.z);
-    vec3 weight = l.type == Lobe::kSpecular     ? l.k * interpolate_fresnel(wo_.z, l.spec_ior, l.cspec0)
+    vec3 weight = l.type == Lobe::kSpecular     ? l.k * interpolate_fresnel(wo_.z, l.spec_ior, l.spec_f0, l.cspec0)
                   : l.type == Lobe::kMicrofacet ? l.tint * fresnel(l, wo_.z) * l.energy_scale
                                                 : l.tint * l.k;
     s.f = weight / cos_i;
@@ -793,8 +751,7 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
   }
   s.wi = frame_.to_world(wi);
   s.delta = false;
-  s.f = f(s.wi);
-  s.pdf = pdf(s.wi);
+  s.f = eval(s.wi, &s.pdf);
   return s.pdf > 0.0f && max_component(s.f) > 0.0f;
 }
 

@@ -54,8 +54,19 @@ class BSDF {
   // is on the back of the surface (glass is then left, not entered).
   BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, const vec3& wo_world);
 
-  vec3 f(const vec3& wi_world) const;
-  float pdf(const vec3& wi_world) const;
+  // The BSDF value for wi and, in *pdf, the solid-angle density with which
+  // sample_f draws wi (next-event estimation needs both: one pass over the
+  // lobes, one half vector per lobe). f and pdf alone are the same pass.
+  vec3 eval(const vec3& wi_world, float* pdf) const;
+  vec3 f(const vec3& wi_world) const {
+    float p;
+    return eval(wi_world, &p);
+  }
+  float pdf(const vec3& wi_world) const {
+    float p;
+    eval(wi_world, &p);
+    return p;
+  }
   bool sample_f(float u_lobe, vec2 u, BSDFSample& s) const;
   // False when every lobe is a delta: light sampling cannot contribute.
   bool has_smooth_lobes() const { return has_smooth_; }
@@ -95,13 +106,15 @@ class BSDF {
     float a, b;
     vec3 cspec0;
     float spec_ior;
+    float spec_f0;        // kSpecular: fresnel_dielectric(1, spec_ior), 0.08 specular
     float eta;
     vec3 ms;              // Oren-Nayar's multiple scattering, Ems (1 - E(wo)) (Cycles 4.3 on; else 0)
     vec3 f0, f82_b;       // Fresnel at normal incidence; F82-tint's b
     vec3 tint_r, tint_t;  // glass: reflection and transmission tints
     float fresnel_ior;    // the IOR of kDielectric and kRealRemapped (relative: inverted on back faces for glass)
     float energy_scale;   // Multiscatter GGX: 1 / E(mu) (else 1)
-    bool is_delta, is_reflect, is_transmit;  // cached by the constructor for f() and pdf()
+    float lambda_o;       // smooth GGX lobes: Smith's Lambda(wo), shared by every eval
+    bool is_delta, is_reflect, is_transmit;  // cached by the constructor for eval()
     bool delta() const {
       return type == kTransparent || (type != kBurley && type != kOrenNayar && ggx.alpha <= kSmoothAlpha);
     }
@@ -122,8 +135,7 @@ class BSDF {
   vec3 fresnel(const Lobe& l, float cos_i) const;
   void glass_fresnel(const Lobe& l, float cos_i, vec3& R, vec3& T) const;
   vec3 albedo_estimate(const Lobe& l) const;
-  vec3 eval_lobe(const Lobe& l, const vec3& wi) const;
-  float pdf_lobe(const Lobe& l, const vec3& wi) const;
+  vec3 eval_lobe(const Lobe& l, const vec3& wi, float* pdf) const;
   bool same_side(const vec3& wi_world) const { return glm::dot(wi_world, ng_) > 0.0f; }
 
   Frame frame_;

@@ -174,7 +174,8 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const vec2 u_light = sampler.get_2d();
     LightSample ls;
     if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
-      vec3 f = bsdf.f(ls.wi) * std::abs(glm::dot(ls.wi, ns));
+      float bsdf_pdf;
+      vec3 f = bsdf.eval(ls.wi, &bsdf_pdf) * std::abs(glm::dot(ls.wi, ns));
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
         // Stop just short of the sampled light point, relative to its distance,
@@ -184,14 +185,14 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         if (!features.transparent) {
           ++counters.rays;
           if (!scene.occluded(origin, ls.wi, tmax)) {
-            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
+            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
             add(bounce, beta * f * ls.li * (w / ls.pdf));
           }
         } else {
           const vec3 tr = shadow_transmittance(scene, origin, ls.wi, tmax,
                                                options.max_transparent_bounces - transparent_bounces, counters);
           if (max_component(tr) > 0.0f) {
-            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf.pdf(ls.wi));
+            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
             add(bounce, beta * f * tr * ls.li * (w / ls.pdf));
           }
         }

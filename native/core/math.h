@@ -32,6 +32,31 @@ inline bool is_finite(const vec3& v) { return std::isfinite(v.x) && std::isfinit
 inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
 inline float sqr(float x) { return x * x; }
 
+// (cos x, sin x) for |x| <= pi/4 by the minimax polynomials of Cephes' sinf
+// and cosf (within 1 ulp there), inline: the samplers need no library call.
+inline vec2 cos_sin_quarter(float x) {
+  const float z = x * x;
+  const float s = x + x * z * ((-1.9515295891e-4f * z + 8.3321608736e-3f) * z - 1.6666654611e-1f);
+  const float c = 1.0f - 0.5f * z + z * z * ((2.443315711809948e-5f * z - 1.388731625493765e-3f) * z + 4.166664568298827e-2f);
+  return vec2(c, s);
+}
+
+// (cos 2 pi u, sin 2 pi u) for u in [0, 1]: the nearest quarter turn q (4u
+// and 4u - q are exact in float) and the polynomials for the rest, within
+// pi/4 (a hair beyond where 4u + 0.5 rounds up). Within 1.1e-7 of the exact
+// values; std::cos / std::sin of the rounded float 2 pi u are within 4.2e-7.
+inline vec2 cos_sin_2pi(float u) {
+  const float t = 4.0f * u;
+  const int q = int(t + 0.5f);
+  const vec2 cs = cos_sin_quarter((t - float(q)) * (0.5f * kPi));
+  switch (q & 3) {
+    case 0: return cs;
+    case 1: return vec2(-cs.y, cs.x);
+    case 2: return -cs;
+    default: return vec2(cs.y, -cs.x);
+  }
+}
+
 struct Ray {
   vec3 o;
   vec3 d;

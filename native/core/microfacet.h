@@ -42,8 +42,7 @@ struct GGX {
     if (wh.z < 0.0f) wh = -wh;
     vec3 t1 = wh.z < 0.99999f ? glm::normalize(glm::cross(vec3(0, 0, 1), wh)) : vec3(1, 0, 0);
     vec3 t2 = glm::cross(wh, t1);
-    float r = std::sqrt(u.x), phi = 2.0f * kPi * u.y;
-    vec2 p(r * std::cos(phi), r * std::sin(phi));
+    vec2 p = std::sqrt(u.x) * cos_sin_2pi(u.y);
     float h = std::sqrt(std::max(0.0f, 1.0f - p.x * p.x));
     p.y = h + (p.y - h) * (1.0f + wh.z) * 0.5f;
     float pz = safe_sqrt(1.0f - p.x * p.x - p.y * p.y);

@@ -9,15 +9,11 @@ namespace tessera {
 inline vec2 sample_uniform_disk_concentric(vec2 u) {
   vec2 o = 2.0f * u - vec2(1.0f);
   if (o.x == 0.0f && o.y == 0.0f) return vec2(0.0f);
-  float r, theta;
-  if (std::abs(o.x) > std::abs(o.y)) {
-    r = o.x;
-    theta = 0.25f * kPi * (o.y / o.x);
-  } else {
-    r = o.y;
-    theta = 0.5f * kPi - 0.25f * kPi * (o.x / o.y);
-  }
-  return r * vec2(std::cos(theta), std::sin(theta));
+  // theta = pi/4 (y / x), or pi/2 - pi/4 (x / y): (cos, sin) of the second
+  // is (sin, cos) of pi/4 (x / y).
+  if (std::abs(o.x) > std::abs(o.y)) return o.x * cos_sin_quarter(0.25f * kPi * (o.y / o.x));
+  const vec2 cs = cos_sin_quarter(0.25f * kPi * (o.x / o.y));
+  return o.y * vec2(cs.y, cs.x);
 }
 
 // Cosine-weighted hemisphere around +z (Malley's method); pdf = cos / pi.
@@ -30,8 +26,8 @@ inline vec3 sample_cosine_hemisphere(vec2 u) {
 inline vec3 sample_uniform_sphere(vec2 u) {
   float z = 1.0f - 2.0f * u.x;
   float r = safe_sqrt(1.0f - z * z);
-  float phi = 2.0f * kPi * u.y;
-  return vec3(r * std::cos(phi), r * std::sin(phi), z);
+  const vec2 cs = r * cos_sin_2pi(u.y);
+  return vec3(cs.x, cs.y, z);
 }
 constexpr float kUniformSpherePdf = 1.0f / (4.0f * kPi);
 

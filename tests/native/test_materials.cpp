@@ -209,6 +209,114 @@ TEST(GGXEnergy, TablesMatchDirectIntegration) {
   EXPECT_LT(ggx_energy::E(1.0f, 0.2f), 0.7f);
 }
 
+// eval returns f and pdf from one pass over the lobes, with Smith's Lambda(wo)
+// and the specular F0 computed by the constructor. Pinned to the values of
+// the separate f and pdf passes it replaced (commit ac193dd) for every
+// closure type and shading model, front and back faces, directions of
+// reflection, grazing reflection and transmission: the same BSDF to float
+// rounding.
+TEST(Materials, EvalKeepsTheValuesOfTheSeparatePasses) {
+  struct Case { Closure c; bool back_face; };
+  std::vector<Case> cases;
+  Closure c = closure(ClosureKind::Principled, 1.0f, vec3(0.8f, 0.5f, 0.3f));
+  cases.push_back({c, false});  // 0: Principled v1, diffuse + specular
+  {
+    Closure d = c;
+    d.metallic = 0.6f, d.roughness = 0.2f;
+    cases.push_back({d, false});  // 1
+    d = c;
+    d.transmission = 1.0f, d.roughness = 0.3f;
+    cases.push_back({d, false}), cases.push_back({d, true});  // 2, 3: Principled glass
+  }
+  {
+    Closure d = closure(ClosureKind::Diffuse, 1.0f, c.color, 0.0f);
+    cases.push_back({d, false});  // 4: Lambert
+    d.roughness = 0.7f;
+    cases.push_back({d, false});  // 5: Oren-Nayar
+  }
+  cases.push_back({closure(ClosureKind::Glossy, 1.0f, c.color, 0.4f), false});  // 6
+  cases.push_back({closure(ClosureKind::Glass, 1.0f, c.color, 0.3f), false});   // 7
+  cases.push_back({closure(ClosureKind::Glass, 1.0f, c.color, 0.3f), true});    // 8
+  {
+    Closure d = c;  // Principled v2: coat, metal, specular, diffuse; then glass
+    d.model = ShadingModel::Cycles4_3, d.multiscatter = true;
+    d.metallic = 0.5f, d.coat = 0.5f, d.diffuse_roughness = 0.6f;
+    cases.push_back({d, false});  // 9
+    d.metallic = 0.0f, d.transmission = 0.5f;
+    cases.push_back({d, false}), cases.push_back({d, true});  // 10, 11
+  }
+  auto v4 = [&](ClosureKind kind, float roughness, bool back_face) {
+    Closure d = closure(kind, 1.0f, c.color, roughness);
+    d.model = ShadingModel::Cycles4_3, d.multiscatter = true;
+    cases.push_back({d, back_face});
+  };
+  v4(ClosureKind::Glossy, 0.4f, false);  // 12
+  v4(ClosureKind::Glass, 0.3f, false);   // 13
+  v4(ClosureKind::Glass, 0.3f, true);    // 14
+  v4(ClosureKind::Diffuse, 0.7f, false); // 15
+  const vec3 wis[3] = {glm::normalize(vec3(-0.4f, 0.1f, 0.7f)), glm::normalize(vec3(0.5f, 0.6f, 0.2f)),
+                       glm::normalize(vec3(-0.2f, 0.3f, -0.9f))};
+  struct Expected { size_t c; int wi; vec3 f; float pdf; };
+  const Expected expected[] = {
+      {0, 0, {0.303666055f, 0.208171502f, 0.144508481f}, 0.326034367f},
+      {0, 1, {0.266052783f, 0.167477399f, 0.101760484f}, 0.075061962f},
+      {0, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {1, 0, {0.64547199f, 0.410389304f, 0.253667563f}, 0.683407187f},
+      {1, 1, {0.0970868245f, 0.0606983602f, 0.036439389f}, 0.0310763791f},
+      {1, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {2, 0, {0.08127065f, 0.08127065f, 0.08127065f}, 0.124072224f},
+      {2, 1, {0.000421886827f, 0.000421886827f, 0.000421886827f}, 0.00019085742f},
+      {2, 2, {0.364002973f, 0.227501854f, 0.136501119f}, 0.410947025f},
+      {3, 0, {0.0882035494f, 0.0882035494f, 0.0882035494f}, 0.134342805f},
+      {3, 1, {0.000457876478f, 0.000457876478f, 0.000457876478f}, 0.00020665639f},
+      {3, 2, {0.0640921816f, 0.0400576107f, 0.0240345672f}, 0.0721893981f},
+      {4, 0, {0.254647911f, 0.159154937f, 0.0954929665f}, 0.274268657f},
+      {4, 1, {0.254647911f, 0.159154937f, 0.0954929665f}, 0.0789629668f},
+      {4, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {5, 0, {0.182812795f, 0.114257991f, 0.0685547963f}, 0.274268657f},
+      {5, 1, {0.218850419f, 0.136781514f, 0.0820689127f}, 0.0789629668f},
+      {5, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {6, 0, {1.60307312f, 1.0019207f, 0.60115242f}, 1.73041618f},
+      {6, 1, {0.0282622613f, 0.0176639128f, 0.0105983485f}, 0.00954877771f},
+      {6, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {7, 0, {0.065016523f, 0.040635325f, 0.0243811961f}, 0.0700752437f},
+      {7, 1, {0.000337509467f, 0.000210943414f, 0.000126566054f}, 0.000107795109f},
+      {7, 2, {0.364002973f, 0.227501854f, 0.136501119f}, 0.422507733f},
+      {8, 0, {0.0705628395f, 0.0441017747f, 0.0264610667f}, 0.0760531053f},
+      {8, 1, {0.000366301188f, 0.000228938239f, 0.000137362949f}, 0.000116990719f},
+      {8, 2, {0.0640921816f, 0.0400576107f, 0.0240345672f}, 0.0743934587f},
+      {9, 0, {0.631399155f, 0.388174772f, 0.236519605f}, 0.654376626f},
+      {9, 1, {0.141959637f, 0.0870390907f, 0.052172631f}, 0.0467874259f},
+      {9, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {10, 0, {0.14526999f, 0.100810096f, 0.0755636841f}, 0.163519084f},
+      {10, 1, {0.112689324f, 0.0697740689f, 0.0425426066f}, 0.0324540697f},
+      {10, 2, {1.07672298f, 0.849697113f, 0.657176197f}, 1.22169828f},
+      {11, 0, {0.149974674f, 0.105129465f, 0.0795730799f}, 0.164435133f},
+      {11, 1, {0.114677399f, 0.0717087463f, 0.0444342308f}, 0.0323744528f},
+      {11, 2, {0.241322488f, 0.187583178f, 0.143299773f}, 0.26206407f},
+      {12, 0, {1.65048265f, 1.02009881f, 0.607617617f}, 1.73041618f},
+      {12, 1, {0.029101111f, 0.0179862585f, 0.0107134404f}, 0.00954877771f},
+      {12, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+      {13, 0, {0.0656666681f, 0.041031871f, 0.0246152226f}, 0.0707310662f},
+      {13, 1, {0.000369467452f, 0.000230862046f, 0.000138495263f}, 0.000117925745f},
+      {13, 2, {0.364050061f, 0.227476954f, 0.136464551f}, 0.422294378f},
+      {14, 0, {0.076040335f, 0.0473971404f, 0.0283877924f}, 0.0813762024f},
+      {14, 1, {0.000863921712f, 0.00053849601f, 0.000322523963f}, 0.00027396495f},
+      {14, 2, {0.0647128597f, 0.0403365418f, 0.0241589583f}, 0.0745818168f},
+      {15, 0, {0.215355873f, 0.121884078f, 0.0701590925f}, 0.274268657f},
+      {15, 1, {0.229050681f, 0.139171824f, 0.0825717524f}, 0.0789629668f},
+      {15, 2, {0.0f, 0.0f, 0.0f}, 0.0f},
+  };
+  const vec3 n(0, 0, 1);
+  for (const Expected& e : expected) {
+    const BSDF bsdf(n, n, with_closures({cases[e.c].c}), cases[e.c].back_face, kWo);
+    float pdf;
+    const vec3 f = bsdf.eval(wis[e.wi], &pdf);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(f[k], e.f[k], 1e-6f * e.f[k]) << "case " << e.c << " wi " << e.wi;
+    EXPECT_NEAR(pdf, e.pdf, 1e-6f * e.pdf) << "case " << e.c << " wi " << e.wi;
+  }
+}
+
 // White furnace (the view-dependent albedo of a white closure): Cycles 4.x's
 // Multiscatter GGX gives back what single scattering loses, for reflection
 // and glass, entering and leaving; Principled v2 (a white dielectric specular
