@@ -38,47 +38,33 @@ inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
 }
 
 // The first two Sobol dimensions: van der Corput, and the dimension whose
-// direction numbers are v_i = v_{i-1} ^ (v_{i-1} >> 1). The second is linear
-// over GF(2) in the index bits, so it is the XOR of one table entry per index
-// byte (4 KiB, built at compile time): the scrambled indices use all 32 bits,
-// and the bit-serial loop cost 32 steps per value.
+// direction numbers are v_i = v_{i-1} ^ (v_{i-1} >> 1) (here bit by bit: the
+// definition, which the table below is built from).
 inline uint32_t sobol_dim0(uint32_t index) { return reverse_bits(index); }
-constexpr uint32_t sobol_dim1_serial(uint32_t index, int first_bit = 0) {
+constexpr uint32_t sobol_dim1(uint32_t index) {
   uint32_t x = 0, v = 0x80000000U;
-  for (int i = 0; i < first_bit; ++i) v ^= v >> 1;
   for (; index; index >>= 1, v ^= v >> 1)
     if (index & 1U) x ^= v;
   return x;
 }
-struct SobolDim1Table {
-  uint32_t byte[4][256];
-  constexpr SobolDim1Table() : byte{} {
-    for (int k = 0; k < 4; ++k)
-      for (uint32_t b = 0; b < 256; ++b) byte[k][b] = sobol_dim1_serial(b, 8 * k);
-  }
-};
-inline constexpr SobolDim1Table kSobolDim1{};
-inline uint32_t sobol_dim1(uint32_t index) {
-  return kSobolDim1.byte[0][index & 255U] ^ kSobolDim1.byte[1][(index >> 8) & 255U] ^
-         kSobolDim1.byte[2][(index >> 16) & 255U] ^ kSobolDim1.byte[3][index >> 24];
-}
-
-// reverse_bits(sobol_dim1(reverse_bits(w))), from w's bytes: bit reversal
-// is a permutation of bits, so it commutes with XOR, and w's byte k holds
-// index byte 3 - k with its bits reversed. The sampler draws the shuffled
-// index bit-reversed (w) and scrambles the point bit-reversed, so this takes
-// both reversals of the y coordinate off its dependency chain.
 constexpr uint32_t reverse_bits_serial(uint32_t x) {
   uint32_t r = 0;
   for (int i = 0; i < 32; ++i) r |= ((x >> i) & 1U) << (31 - i);
   return r;
 }
+
+// reverse_bits(sobol_dim1(reverse_bits(w))) by one table entry per byte of w
+// (4 KiB, built at compile time): sobol_dim1 is linear over GF(2) in the
+// index bits and bit reversal is a permutation of bits, so both commute with
+// XOR, and w's byte k holds index byte 3 - k with its bits reversed. The
+// sampler draws the shuffled index bit-reversed (w) and scrambles the point
+// bit-reversed, so this takes both reversals of the y coordinate off its
+// dependency chain (and the bit-serial loop's 32 steps).
 struct SobolDim1ReversedTable {
   uint32_t byte[4][256];
   constexpr SobolDim1ReversedTable() : byte{} {
     for (int k = 0; k < 4; ++k)
-      for (uint32_t b = 0; b < 256; ++b)
-        byte[k][b] = reverse_bits_serial(sobol_dim1_serial(reverse_bits_serial(b) >> (8 * k)));
+      for (uint32_t b = 0; b < 256; ++b) byte[k][b] = reverse_bits_serial(sobol_dim1(reverse_bits_serial(b) >> (8 * k)));
   }
 };
 inline constexpr SobolDim1ReversedTable kSobolDim1Reversed{};
