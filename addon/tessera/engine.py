@@ -118,6 +118,7 @@ def render_options(settings, region):
     opt.threads = settings.threads
     opt.tile_size = settings.tile_size
     opt.filter_width = settings.filter_width
+    opt.max_camera_rays = settings.max_camera_rays
     opt.region_x0, opt.region_y0, opt.region_x1, opt.region_y1 = region
     return opt
 

@@ -104,6 +104,12 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
     filter_width: FloatProperty(
         name="Filter Width", description="Width of the Blackman-Harris pixel filter, in pixels",
         default=1.5, min=0.01, max=10.0, subtype='PIXEL')
+    max_camera_rays: IntProperty(
+        name="Emitter Antialiasing",
+        description="Most camera rays per sample in a pixel where the emission seen directly varies, as on the edge "
+                    "of a bright light or window: the extra rays only look for that emission, which takes the noise "
+                    "off such edges for little time. The extra rays come in powers of two; 1 turns it off",
+        default=64, min=1, max=256)
 
 
 def _update_render_passes(self, context):

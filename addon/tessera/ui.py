@@ -46,6 +46,7 @@ class TESSERA_PT_sampling(TesseraPanel, bpy.types.Panel):
         sub.active = settings.error_target == 0
         sub.prop(settings, "estimate_error")
         layout.prop(settings, "filter_width")
+        layout.prop(settings, "max_camera_rays")
 
 
 class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):

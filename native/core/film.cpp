@@ -42,9 +42,11 @@ float PixelFilter::warp(float u) const {
 
 namespace tessera {
 
-void Film::resize(int width, int height, bool estimate_error) {
+void Film::resize(int width, int height, bool estimate_error, bool camera_emission) {
   const size_t n = size_t(width) * size_t(height);
   width_ = width;
+  le_stats_.assign(camera_emission ? n : 0, CameraEmissionStats());
+  split_.assign(camera_emission ? n : 0, 0);
   sum_.assign(n, vec3(0.0f));
   sum_a_.assign(n, vec3(0.0f));
   sum_sq_.assign(n, 0.0);
@@ -92,6 +94,54 @@ double Film::sample_variance(size_t i) const {
   const vec3 m = sum_[i] / float(n);
   const double mean_sq = double(m.x) * m.x + double(m.y) * m.y + double(m.z) * m.z;
   return std::max(0.0, (sum_sq_[i] - n * mean_sq) / double(n - 1));
+}
+
+void Film::restart(size_t i) {
+  sum_[i] = sum_a_[i] = max_[i] = vec3(0.0f);
+  sum_sq_[i] = 0.0;
+  max_index_[i] = 0;
+  count_[i] = 0;
+  if (!le_stats_.empty()) le_stats_[i] = CameraEmissionStats();
+  if (slot_of_.empty() || slot_of_[i] < 0) return;
+  const size_t slot = size_t(slot_of_[i]);
+  replicate_samples_[slot] = 0;
+  for (int k = 0; k < replicate_streams_[slot]; ++k)
+    replicate_sum_[size_t(replicate_first_[slot] + k)] = replicate_max_[size_t(replicate_first_[slot] + k)] = vec3(0.0f);
+}
+
+// A sample Le + rest (Le: the emission its camera ray sees first) has
+// variance V_e + V_r + 2 cov; with K more camera rays for the emission it is
+// rest + the mean of K + 1 Le, of variance ~ V_r + G / (K + 1), G = V_e +
+// 2 cov(Le, rest) (negative where the two make up for each other, as a
+// light's edge against the ceiling it lights: then it is not split), at a
+// cost of ~ 1 + K c (c: one camera ray against the path's rays). The
+// product, the pixel's squared error times its time, is least at K + 1 =
+// sqrt(G (1 - c) / (V_r c)) (d/dK = 0), here to the power of two below.
+// From the pixel's own samples only, so that a region render makes the
+// choices of the full frame.
+int Film::wanted_camera_rays_log2(size_t i, int max_log2) const {
+  const int n = count_[i];
+  if (n < 2) return 0;
+  const CameraEmissionStats& st = le_stats_[i];
+  const vec3 le = st.sum_le / float(n), rest = sum_[i] / float(n) - le;  // the rest's mean: the pixel's, split or not
+  const double var_le = (double(st.sum_le_sq) - n * double(glm::dot(le, le))) / double(n - 1);
+  const double cov = (double(st.sum_le_rest) - n * double(glm::dot(le, rest))) / double(n - 1);
+  const double var_rest = std::max(0.0, (double(st.sum_rest_sq) - n * double(glm::dot(rest, rest))) / double(n - 1));
+  const double g = var_le + 2.0 * cov;
+  if (!(g > 0.0)) return 0;
+  // The rest's variance counts as at least (kSplitNoiseFloor x the pixel's
+  // value)^2: a pixel whose path finds little besides the emission (a sky
+  // seen directly through a window, an HDRI's texture) is split only where
+  // that emission varies a lot next to its value, not for variations too
+  // small to matter to the image's error.
+  const vec3 m = sum_[i] / float(n);
+  const double floor = kSplitNoiseFloor * kSplitNoiseFloor * double(glm::dot(m, m));
+  const double c = std::min(0.5, double(n) / std::max(double(st.path_rays), 1.0));
+  const double k = std::sqrt(g * (1.0 - c) / (std::max(var_rest, floor) * c)) - 1.0;
+  if (!(k >= 0.0)) return 0;
+  int l = 0;
+  while (l < max_log2 && double(2 << l) <= k) ++l;
+  return l;
 }
 
 // The image's mean variance per pixel and channel in three parts.
@@ -358,6 +408,14 @@ void DataPasses::add(size_t i, const FirstHit& h) {
     denoising_normal_[i] += vec3(glm::dot(n, camera_x_), glm::dot(n, camera_y_), glm::dot(n, camera_forward_));
   if (mask_ & kPassDenoisingAlbedo) denoising_albedo_[i] += h.denoising_albedo;
   if (mask_ & kPassDenoisingDepth) denoising_depth_[i] += h.denoising_depth;
+}
+
+void DataPasses::restart(size_t i) {
+  for (auto* b : {&depth_, &denoising_depth_})
+    if (!b->empty()) (*b)[i] = 0.0f;
+  if (!depth_count_.empty()) depth_count_[i] = 0;
+  for (auto* b : {&normal_, &diffuse_color_, &emission_, &denoising_normal_, &denoising_albedo_})
+    if (!b->empty()) (*b)[i] = vec3(0.0f);
 }
 
 void DataPasses::resolve(size_t i, int n, uint32_t pass, float* out) const {

@@ -51,8 +51,9 @@ class Film {
   static constexpr int kFollowStreams = 8;  // replicate streams of a followed pixel
   static constexpr double kFollowShare = 0.25;  // followed while the pixels near bright samples carry this much
 
-  // n = width * height pixels; replicates only with estimate_error.
-  void resize(int width, int height, bool estimate_error);
+  // n = width * height pixels; replicates only with estimate_error; the
+  // camera emission statistics only with camera_emission.
+  void resize(int width, int height, bool estimate_error, bool camera_emission = false);
   size_t size() const { return sum_.size(); }
 
   void add(size_t i, int sample, const vec3& L) {
@@ -100,6 +101,32 @@ class Film {
     if (L.x + L.y + L.z > m.x + m.y + m.z) m = L;
   }
   int replicate_stride() const { return stride_; }
+
+  // Emitter antialiasing (render.cpp): per pixel, the emission its camera
+  // rays found at their first surface (Li's camera_le), the rest of their
+  // paths' radiance and the rays the paths traced, and the number of extra
+  // camera rays each of its samples traces for that emission (0, or a power
+  // of two once the pixel is split).
+  bool has_camera_emission() const { return !le_stats_.empty(); }
+  void add_camera_emission(size_t i, const vec3& le, const vec3& rest) {
+    CameraEmissionStats& st = le_stats_[i];
+    st.sum_le += le;
+    st.sum_le_sq += glm::dot(le, le);
+    st.sum_le_rest += glm::dot(le, rest);
+    st.sum_rest_sq += glm::dot(rest, rest);
+  }
+  void add_path_rays(size_t i, uint64_t rays) { le_stats_[i].path_rays += float(rays); }
+  // log2 of the extra camera rays per sample that make pixel i's error over
+  // its time least, from its own samples (film.cpp), at most max_log2; 0:
+  // not split.
+  int wanted_camera_rays_log2(size_t i, int max_log2) const;
+  static constexpr double kSplitNoiseFloor = 0.1;
+  // Starts pixel i over (emitter antialiasing, once it is split): its
+  // samples, their statistics and its replicates' samples are dropped.
+  void restart(size_t i);
+  int extra_camera_rays(size_t i) const { return split_.empty() || split_[i] == 0 ? 0 : 1 << split_[i]; }
+  int extra_camera_rays_log2(size_t i) const { return split_[i]; }
+  void set_extra_camera_rays_log2(size_t i, int log2) { split_[i] = uint8_t(log2); }
   size_t replicate_grid_size() const { return grid_slots_; }
   // Replicate streams, the grid's and the followed pixels' (what they cost:
   // each stream traces its pixel's samples once more).
@@ -140,6 +167,15 @@ class Film {
   std::vector<uint8_t> active_;
   std::vector<vec3> max_;  // per pixel: its brightest sample (largest RGB sum)
   std::vector<int> max_index_;  // per pixel: that sample's index
+  // Per pixel, sums over its samples (RGB dot products): camera emission,
+  // its square, its product with the rest of the path, the rest's square,
+  // and the rays of the paths (not counting extra camera rays).
+  struct CameraEmissionStats {
+    vec3 sum_le{0.0f};
+    float sum_le_sq = 0.0f, sum_le_rest = 0.0f, sum_rest_sq = 0.0f, path_rays = 0.0f;
+  };
+  std::vector<CameraEmissionStats> le_stats_;  // empty: not kept
+  std::vector<uint8_t> split_;                 // per pixel: log2 of its extra camera rays per sample (0: none)
   std::vector<int> slot_of_;    // per pixel: its replicate slot or -1 (empty: no replicates)
   size_t grid_slots_ = 0;       // slots 0 .. grid_slots_ - 1 are the grid's
   // Per slot: the pixel, its first stream, its number of streams and the
@@ -163,6 +199,8 @@ class DataPasses {
 
   // Adds one sample's record; a sample that hit nothing adds nothing.
   void add(size_t i, const FirstHit& h);
+  // Drops pixel i's records (Film::restart).
+  void restart(size_t i);
   // The pass's value at pixel i over n samples: pass_channels(pass) floats.
   void resolve(size_t i, int n, uint32_t pass, float* out) const;
 

@@ -67,12 +67,29 @@ SceneFeatures scene_features(const Scene& scene) {
   SceneFeatures f;
   f.hittable_emitters = area || !lights.triangles().empty() || scene.background.emits();
   f.emits = f.hittable_emitters || !lights.lights().empty();
-  for (const Material& m : scene.materials) f.transparent = f.transparent || m.may_be_transparent();
+  f.camera_emission = scene.background.emits();
+  for (const Material& m : scene.materials) {
+    f.transparent = f.transparent || m.may_be_transparent();
+    f.camera_emission = f.camera_emission || m.is_emissive();
+  }
   return f;
 }
 
+vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters) {
+  Hit hit;
+  ++counters.rays;
+  if (!scene.intersect(ray, hit))
+    return scene.background.emits() ? clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct) : vec3(0.0f);
+  const SurfaceInteraction si = scene.interaction(ray, hit);
+  const Material& base = scene.materials[si.material];
+  if (!base.is_emissive()) return vec3(0.0f);
+  MaterialScratch textured;
+  return clamped(scene.material_at(si, textured).emission(si.back_face), options.clamp_direct);
+}
+
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features, FirstHit* first) {
+        const SceneFeatures& features, FirstHit* first, vec3* camera_le) {
+  if (camera_le) *camera_le = vec3(0.0f);
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
@@ -95,7 +112,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   // emit, light sampled at the first hit) are direct, the rest indirect.
   auto add = [&](int bounce, vec3 c) { L += clamped(c, bounce == 0 ? options.clamp_direct : options.clamp_indirect); };
 
-  for (int bounce = 0;;) {
+  for (int bounce = 0, vertex = 0;; ++vertex) {
     Hit hit;
     ++counters.rays;
     const bool found = scene.intersect(ray, hit);
@@ -122,6 +139,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       if (first && !first->complete()) first->miss(le);
       if (emits) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.world_pmf() * world_pdf);
+        if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);
         add(bounce, beta * le * w);
       }
       break;
@@ -132,6 +150,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const Material& material = scene.material_at(si, textured);
     const vec3 le = material.emission(si.back_face);
     if (first && !first->complete()) first->surface(ray, hit.t, si, material, le);
+    if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);
     if (max_component(le) > 0.0f) {
       float w = 1.0f;
       if (!count_emission_fully) {
@@ -249,6 +268,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   }
   if (!is_finite(L)) {
     ++counters.invalid_samples;
+    if (camera_le) *camera_le = vec3(0.0f);
     return vec3(0.0f);
   }
   return L;

@@ -27,13 +27,26 @@ struct SceneFeatures {
   // Alpha): shadow rays then pass such surfaces, attenuated (Cycles'
   // transparent shadows). Without any, shadow rays stay any-hit occlusion tests.
   bool transparent = false;
+  // Whether a camera ray can see emission (an emissive material or an
+  // emitting world): only then are pixels' camera emission statistics kept
+  // and their edges supersampled (RenderSession, emitter antialiasing).
+  bool camera_emission = true;
   // Every feature modelled, whatever the scene has (RenderOptions::specialise off).
-  static SceneFeatures all() { return {true, true, true}; }
+  static SceneFeatures all() { return {true, true, true, true}; }
 };
 SceneFeatures scene_features(const Scene& scene);
 
 // first: when not null, filled with what the render passes need (passes.h).
+// camera_le: when not null, set to the part of the result that is the
+// emission the camera ray finds at its first surface (or the world's, if it
+// hits nothing), as camera_emission gives it: Li = that + the rest of the path.
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features = SceneFeatures(), FirstHit* first = nullptr);
+        const SceneFeatures& features = SceneFeatures(), FirstHit* first = nullptr, vec3* camera_le = nullptr);
+
+// The emission a camera ray sees at its first surface, or the world's
+// radiance along it if it hits nothing, clamped as Li clamps direct light:
+// the first term of Li alone, for a pixel's extra camera rays (emitter
+// antialiasing, render.cpp).
+vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters);
 
 }  // namespace tessera

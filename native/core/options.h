@@ -29,6 +29,11 @@ struct RenderOptions {
   int threads = 0;       // 0: all cores
   int tile_size = 8;
   float filter_width = 1.5f;  // Blackman-Harris, in pixels (Cycles' default)
+  // Emitter antialiasing (render.cpp): a pixel where the emission its camera
+  // rays see varies (the edge of a bright light or window) traces up to this
+  // many camera rays per sample (its path's and a power of two more, which
+  // only look for that emission); 1: off.
+  int max_camera_rays = 64;
   // Adaptive sampling (render.cpp): after each pass, a pixel with at least
   // adaptive_min_samples (0: automatic) stops when its estimated error
   // (Cycles' formula) has been below adaptive_threshold at two pass

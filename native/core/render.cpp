@@ -25,7 +25,8 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   tiles_x_ = (width() + options_.tile_size - 1) / options_.tile_size;
   tiles_y_ = (height() + options_.tile_size - 1) / options_.tile_size;
   // The error target needs the estimate, whatever estimate_error says.
-  film_.resize(width(), height(), options.estimate_error || options.error_target > 0.0f);
+  film_.resize(width(), height(), options.estimate_error || options.error_target > 0.0f,
+               features_.camera_emission && options.max_camera_rays > 1);
   display_.assign(size_t(width()) * height() * 4, 0.0f);
   data_passes_.configure(options.passes, film_.size(), scene.camera);
   for (int b = 0; b < kNumDataPasses; ++b)
@@ -38,41 +39,47 @@ void RenderSession::render_tile(int tile, PathCounters& counters) {
   const int tx = tile % tiles_x_, ty = tile / tiles_x_;
   const int px0 = x0_ + tx * ts, py0 = y0_ + ty * ts;
   const int px1 = std::min(px0 + ts, x1_), py1 = std::min(py0 + ts, y1_);
-  for (int py = py0; py < py1; ++py) {
+  for (int py = py0; py < py1; ++py)
     for (int px = px0; px < px1; ++px) {
       const size_t i = size_t(py - y0_) * width() + (px - x0_);
-      const int sample_begin = film_.count(i), sample_end = film_.active(i) ? pass_end_[i] : sample_begin;
-      for (int s = sample_begin; s < sample_end; ++s) {
-        // Pixel coordinates are those of the full frame, so a region render
-        // reproduces the full render's pixels exactly.
-        Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed);
-        const Ray ray = camera_ray(px, py, sampler);
-        if (!data_passes_.mask()) {
-          film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_));
-        } else {
-          FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
-          film_.add(i, s, Li(scene_, ray, sampler, options_, counters, features_, &first));
-          data_passes_.add(i, first);
-        }
-      }
-      if (sample_end > sample_begin) film_.set_count(i, sample_end);
-      // The error estimate's replicates (film.h): the pixel's samples from
-      // independently scrambled streams, kept apart from the image, brought
-      // up to the pixel's count (a pixel followed from this pass on catches
-      // up from sample 0, whether or not it gets samples of its own now).
-      const int slot = film_.replicate_slot(px - x0_, py - y0_);
-      if (slot < 0) continue;
-      const int from = film_.replicate_samples(slot), to = film_.count(i);
-      if (to <= from) continue;
-      for (int k = 0; k < film_.replicate_streams(slot); ++k)
-        for (int s = from; s < to; ++s) {
-          Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), options_.seed + uint32_t(k + 1) * kReplicateSeed);
-          const Ray ray = camera_ray(px, py, sampler);
-          film_.add_replicate(slot, k, Li(scene_, ray, sampler, options_, counters, features_));
-        }
-      film_.set_replicate_samples(slot, to);
+      render_pixel(px, py, film_.active(i) ? pass_end_[i] : film_.count(i), counters);
     }
+}
+
+void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& counters) {
+  const size_t i = size_t(py - y0_) * width() + (px - x0_);
+  const int sample_begin = film_.count(i);
+  const int camera_rays = film_.extra_camera_rays(i);
+  const bool keep_le = film_.has_camera_emission();
+  const uint64_t rays_before = counters.rays;
+  for (int s = sample_begin; s < sample_end; ++s) {
+    // Pixel coordinates are those of the full frame, so a region render
+    // reproduces the full render's pixels exactly.
+    vec3 le, rest;
+    if (!data_passes_.mask()) {
+      film_.add(i, s, sample(px, py, s, options_.seed, camera_rays, counters, nullptr, keep_le ? &le : nullptr, &rest));
+    } else {
+      FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
+      film_.add(i, s, sample(px, py, s, options_.seed, camera_rays, counters, &first, keep_le ? &le : nullptr, &rest));
+      data_passes_.add(i, first);
+    }
+    if (keep_le) film_.add_camera_emission(i, le, rest);
   }
+  if (keep_le) film_.add_path_rays(i, counters.rays - rays_before - uint64_t(camera_rays) * (sample_end - sample_begin));
+  if (sample_end > sample_begin) film_.set_count(i, sample_end);
+  // The error estimate's replicates (film.h): the pixel's samples from
+  // independently scrambled streams, kept apart from the image, brought
+  // up to the pixel's count (a pixel followed from this pass on catches
+  // up from sample 0, whether or not it gets samples of its own now).
+  const int slot = film_.replicate_slot(px - x0_, py - y0_);
+  if (slot < 0) return;
+  const int from = film_.replicate_samples(slot), to = film_.count(i);
+  if (to <= from) return;
+  for (int k = 0; k < film_.replicate_streams(slot); ++k)
+    for (int s = from; s < to; ++s)
+      film_.add_replicate(slot, k, sample(px, py, s, options_.seed + uint32_t(k + 1) * kReplicateSeed, camera_rays,
+                                          counters, nullptr, nullptr, nullptr));
+  film_.set_replicate_samples(slot, to);
 }
 
 uint64_t RenderSession::allocate_by_error(uint64_t budget, int step) {
@@ -146,6 +153,69 @@ Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
   return scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
 }
 
+vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int camera_rays, PathCounters& counters,
+                           FirstHit* first, vec3* camera_le, vec3* rest) const {
+  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed);
+  if (camera_rays == 0) {
+    const Ray ray = camera_ray(px, py, sampler);
+    const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, camera_le);
+    if (camera_le && rest) *rest = L - *camera_le;
+    return L;
+  }
+  // Emitter antialiasing: the pixel integral of the path's radiance is that
+  // of the emission the camera ray sees first plus that of the rest, and the
+  // first term, whose edges against bright lights carry a pixel's error,
+  // gets K = camera_rays more camera rays per sample while the path goes on
+  // from its own: Le(x_0) + rest(x_0) becomes rest(x_0) + (Le(x_0) +
+  // sum_j Le(y_j)) / (K + 1), the same expectation. The path's x_0 over the
+  // samples stays a (0,2)-sequence (the rest has edges too: from the stream's
+  // every K-th point instead it converged as if random, and the image got
+  // worse); the y_j are the aligned block s K .. s K + K - 1 of a stream of
+  // their own (the index shuffle maps aligned blocks to aligned blocks), so
+  // they are stratified among themselves and, with K fixed, all of the
+  // pixel's are the first n K points of one (0,2)-sequence. A split pixel
+  // starts over (choose_camera_rays) with its path's numbers from another
+  // stream, apart from the samples that chose to split it.
+  sampler = Sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed ^ kSplitPathSeed);
+  const Ray ray = camera_ray(px, py, sampler);
+  vec3 le0;
+  const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, &le0);
+  const uint32_t first_ray = uint32_t(s) * uint32_t(camera_rays);
+  vec3 le_sum = le0;
+  for (int k = 0; k < camera_rays; ++k) {
+    Sampler extra(uint32_t(px), uint32_t(py), first_ray + uint32_t(k), seed ^ kCameraRaySeed);
+    le_sum += camera_emission(scene_, camera_ray(px, py, extra), options_, counters);
+  }
+  if (camera_le) *camera_le = le0;
+  if (rest) *rest = L - le0;
+  return L - le0 + le_sum / float(camera_rays + 1);
+}
+
+std::vector<std::pair<size_t, int>> RenderSession::choose_camera_rays() {
+  // Each pixel by its own samples (Film::wanted_camera_rays_log2). A pixel
+  // split now starts over: its samples so far, one camera ray each, would
+  // keep the error of the edge it is split for (at 64 samples, the first 8
+  // of veach_mis's brightest light edge carried most of it); they only
+  // chose K, and the caller renders the pixel again up to the count it had
+  // (returned with it). A split pixel later keeps the most it was given (its
+  // blocks of camera rays stay apart in its stream).
+  std::vector<std::pair<size_t, int>> restarted;
+  int max_log2 = 0;
+  while (max_log2 < 8 && (2 << max_log2) <= options_.max_camera_rays - 1) ++max_log2;
+  for (size_t i = 0; i < film_.size(); ++i) {
+    if (!film_.active(i)) continue;
+    const int had = film_.extra_camera_rays_log2(i), l = film_.wanted_camera_rays_log2(i, max_log2);
+    if (l <= had) continue;
+    if (had == 0) {
+      restarted.emplace_back(i, film_.count(i));
+      film_.restart(i);
+      data_passes_.restart(i);
+    }
+    film_.set_extra_camera_rays_log2(i, l);
+  }
+  return restarted;
+}
+
 double RenderSession::elapsed_seconds() const {
   if (!started_.load(std::memory_order_acquire)) return 0.0;
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -193,6 +263,7 @@ void RenderSession::render() {
   // The image-wide error estimate is checked from this many samples on.
   constexpr int kMinSamplesForErrorTarget = 8;
   constexpr int kAdaptiveConfirmations = 2;
+  constexpr int kMinSamplesForCameraRays = 4;
   std::vector<int> converged_passes(adaptive ? num_pixels : 0, 0);
   std::vector<uint8_t> stop_now(adaptive ? num_pixels : 0, 0);
   const char* stop_reason = "samples";
@@ -318,6 +389,18 @@ void RenderSession::render() {
       taken += uint64_t(film_.count(i));
       active += film_.active(i) ? 1 : 0;
     }
+    // Emitter antialiasing from the fourth sample on.
+    if (film_.has_camera_emission() && done >= kMinSamplesForCameraRays) {
+      const auto restarted = choose_camera_rays();
+      arena.execute([&] {
+        tbb::parallel_for(size_t(0), restarted.size(), [&](size_t k) {
+          const size_t i = restarted[k].first;
+          render_pixel(x0_ + int(i % width()), y0_ + int(i / width()), restarted[k].second, counters.local());
+        });
+      });
+    }
+    PathCounters all;
+    for (const PathCounters& c : counters) all.rays += c.rays;
     const double err = film_.estimated_relative_error();
     {
       std::lock_guard<std::mutex> lock(display_mutex_);
@@ -339,8 +422,6 @@ void RenderSession::render() {
         for (size_t i = 0; i < num_pixels; ++i) sample_count_display_[i] = float(film_.count(i)) * scale;
       }
     }
-    PathCounters all;
-    for (const PathCounters& c : counters) all.rays += c.rays;
     rays_.store(all.rays);
     pixel_samples_.store(taken);
     estimated_error_.store(err);

@@ -73,6 +73,9 @@ class RenderSession {
   // Renders the tile's active pixels from their sample count up to
   // pass_end_ (per pixel).
   void render_tile(int tile, PathCounters& counters);
+  // Renders pixel (px, py) of the full frame from its sample count up to
+  // sample_end, and its replicates up to its count.
+  void render_pixel(int px, int py, int sample_end, PathCounters& counters);
   // The error-driven pass of adaptive sampling under a time limit or error
   // target (render.cpp): spreads `budget` samples over the active pixels
   // (setting pass_end_), at most max(step, its count) more per pixel and never past
@@ -80,6 +83,19 @@ class RenderSession {
   uint64_t allocate_by_error(uint64_t budget, int step);
   // The camera ray of pixel (px, py) of the full frame for the sampler's sample.
   Ray camera_ray(int px, int py, Sampler& sampler) const;
+  // Sample s of pixel (px, py) with scrambling seed `seed`: the path's
+  // radiance, its camera emission term averaged over its own and camera_rays
+  // more camera rays (emitter antialiasing); camera_le and rest (not null) get the path's own
+  // camera emission (Li) and the rest of its radiance.
+  vec3 sample(int px, int py, int s, uint32_t seed, int camera_rays, PathCounters& counters, FirstHit* first,
+              vec3* camera_le, vec3* rest) const;
+  // Emitter antialiasing's choice, between passes: each pixel's extra camera
+  // rays per sample from its camera emission statistics (render.cpp);
+  // returns the pixels it started over, each with the sample count it had.
+  std::vector<std::pair<size_t, int>> choose_camera_rays();
+  // Scrambling seed offset of a split pixel's camera rays.
+  static constexpr uint32_t kCameraRaySeed = 0x85ebca6bU;
+  static constexpr uint32_t kSplitPathSeed = 0xc2b2ae35U;  // ... and the paths' numbers
   // Scrambling seed offset of the error estimate's replicates (film.h).
   static constexpr uint32_t kReplicateSeed = 0x9e3779b9U;
   bool out_of_time() const;

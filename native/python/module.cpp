@@ -204,6 +204,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("threads", &RenderOptions::threads)
       .def_readwrite("tile_size", &RenderOptions::tile_size)
       .def_readwrite("filter_width", &RenderOptions::filter_width)
+      .def_readwrite("max_camera_rays", &RenderOptions::max_camera_rays)
       .def_readwrite("specialise", &RenderOptions::specialise,
                      "False: model every scene feature whether the scene has it or not (benchmarks)")
       .def_readwrite("passes", &RenderOptions::passes, "Data passes to write: a sum of PASSES values")

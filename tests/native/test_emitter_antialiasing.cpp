@@ -1,0 +1,131 @@
+// Emitter antialiasing (render.cpp, RenderSession::sample): pixels on the
+// edge of a bright light seen directly trace extra camera rays for that
+// emission. Same expected image, less error there, nothing changed in a
+// scene whose camera sees no emission, and still independent of threads,
+// tiles and regions.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "core/render.h"
+#include "scene_fixtures.h"
+
+using namespace tessera;
+
+namespace {
+struct Result {
+  std::vector<float> pixels;
+  RenderStats stats;
+};
+Result render(const Scene& s, RenderOptions opt) {
+  RenderSession session(s, opt);
+  session.render();
+  return {session.pixels(), session.stats()};
+}
+
+// The Cornell box with a small, very bright light on its back wall, under a
+// pixel wide at 24 x 24: every pixel it touches is an edge.
+void build_box_with_bright_spot(Scene& s) {
+  fixtures::build_cornell_box(s, 24, 24, mat4(1.0f), 1.0f, /*commit=*/false);
+  Material spot;
+  spot.base_color = vec3(0.0f);
+  spot.emission_front = spot.emission_back = vec3(2000.0f);
+  s.materials.push_back(spot);
+  const float x = 0.13f, y = -0.21f, h = 0.04f, z = -0.98f;
+  fixtures::add_quad(s, {x - h, y - h, z}, {x + h, y - h, z}, {x + h, y + h, z}, {x - h, y + h, z},
+                     uint32_t(s.materials.size() - 1));
+  s.commit();
+}
+
+// Squared error summed over the pixels the spot lights directly (the
+// reference over 20 there, under 15 everywhere else): elsewhere, paths that
+// find the spot after a bounce are left as they were, and their fireflies
+// would drown the comparison.
+double spot_error(const std::vector<float>& a, const std::vector<float>& ref) {
+  double sum = 0.0;
+  for (size_t i = 0; i < a.size(); i += 4)
+    if (ref[i] > 20.0f)
+      for (int c = 0; c < 3; ++c) sum += (double(a[i + c]) - ref[i + c]) * (double(a[i + c]) - ref[i + c]);
+  return sum;
+}
+double mean(const std::vector<float>& a) {
+  double sum = 0.0;
+  for (size_t i = 0; i < a.size(); i += 4) sum += a[i] + a[i + 1] + a[i + 2];
+  return sum / double(a.size() / 4 * 3);
+}
+}  // namespace
+
+TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
+  Scene s;
+  build_box_with_bright_spot(s);
+  RenderOptions opt;
+  opt.samples = 1024;
+  opt.seed = 1000;
+  const Result ref = render(s, opt);
+  opt.samples = 16;
+  double err_on = 0.0, err_off = 0.0, mean_on = 0.0, mean_off = 0.0;
+  uint64_t rays_on = 0, rays_off = 0;
+  const int seeds = 6;
+  for (uint32_t seed = 0; seed < uint32_t(seeds); ++seed) {
+    opt.seed = seed;
+    opt.max_camera_rays = 64;
+    const Result on = render(s, opt);
+    opt.max_camera_rays = 1;
+    const Result off = render(s, opt);
+    err_on += spot_error(on.pixels, ref.pixels), err_off += spot_error(off.pixels, ref.pixels);
+    mean_on += mean(on.pixels), mean_off += mean(off.pixels);
+    rays_on += on.stats.rays, rays_off += off.stats.rays;
+  }
+  // Extra camera rays were traced, on a few pixels only.
+  EXPECT_GT(rays_on, rays_off);
+  EXPECT_LT(double(rays_on), 1.25 * double(rays_off));
+  // Same expectation: both means agree with the reference's (the spot is
+  // most of the image's light, so a wrong weight would show here).
+  EXPECT_NEAR(mean_on / seeds / mean(ref.pixels), 1.0, 0.02);
+  EXPECT_NEAR(mean_off / seeds / mean(ref.pixels), 1.0, 0.02);
+  // Far less error on the spot (0.11 of it when written).
+  EXPECT_GT(err_off, 0.0);
+  EXPECT_LT(err_on, 0.3 * err_off) << "split " << err_on / seeds << " unsplit " << err_off / seeds;
+}
+
+TEST(EmitterAntialiasing, SceneWhoseCameraSeesNoEmissionIsUnchanged) {
+  Scene s;
+  fixtures::build_cornell_box(s, 16, 16, mat4(1.0f), 1.0f, /*commit=*/false);
+  s.materials[3].emission_front = s.materials[3].emission_back = vec3(0.0f);
+  Light point;
+  point.type = LightType::Point;
+  point.position = vec3(0.0f, 0.8f, 0.0f);
+  point.radiance = vec3(5.0f);
+  s.lights.push_back(point);
+  s.commit();
+  EXPECT_FALSE(scene_features(s).camera_emission);
+  RenderOptions opt;
+  opt.samples = 16;
+  const Result on = render(s, opt);
+  opt.max_camera_rays = 1;
+  const Result off = render(s, opt);
+  EXPECT_EQ(on.stats.rays, off.stats.rays);
+  EXPECT_EQ(0, std::memcmp(on.pixels.data(), off.pixels.data(), on.pixels.size() * sizeof(float)));
+}
+
+TEST(EmitterAntialiasing, SplitPixelsDoNotDependOnThreadsTilesOrTheRegion) {
+  Scene s;
+  build_box_with_bright_spot(s);
+  RenderOptions opt;
+  opt.samples = 32;
+  opt.threads = 1;
+  const Result one = render(s, opt);
+  opt.threads = 0;
+  opt.tile_size = 5;
+  const Result all = render(s, opt);
+  ASSERT_EQ(one.pixels.size(), all.pixels.size());
+  EXPECT_EQ(0, std::memcmp(one.pixels.data(), all.pixels.data(), one.pixels.size() * sizeof(float)));
+  // A region around the spot: its pixels choose as in the full frame.
+  opt.region_x0 = 8, opt.region_x1 = 24, opt.region_y0 = 4, opt.region_y1 = 16;
+  const Result part = render(s, opt);
+  ASSERT_EQ(part.pixels.size(), size_t(16 * 12 * 4));
+  for (int y = 0; y < 12; ++y)
+    for (int x = 0; x < 16; ++x)
+      for (int c = 0; c < 4; ++c)
+        ASSERT_EQ(part.pixels[4 * (y * 16 + x) + c], one.pixels[4 * ((y + 4) * 24 + x + 8) + c]) << x << " " << y;
+}
