@@ -11,20 +11,15 @@
 #include <tuple>
 
 #include "core/render.h"
+#include "render_fixtures.h"
 #include "scene_fixtures.h"
 
 using namespace tessera;
+using fixtures::mean_rgb;
+using fixtures::render;
+using fixtures::Result;
 
 namespace {
-struct Result {
-  std::vector<float> px;
-  RenderStats stats;
-};
-Result render(const Scene& s, RenderOptions opt) {
-  RenderSession session(s, opt);
-  session.render();
-  return {session.pixels(), session.stats()};
-}
 double rmse(const std::vector<float>& a, const std::vector<float>& b) {
   double e = 0.0;
   size_t n = 0;
@@ -34,12 +29,6 @@ double rmse(const std::vector<float>& a, const std::vector<float>& b) {
     ++n;
   }
   return std::sqrt(e / n);
-}
-double mean_rgb(const std::vector<float>& a) {
-  double m = 0.0;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (i % 4 != 3) m += a[i];
-  return m / (a.size() / 4 * 3);
 }
 // A synthetic film rendered pass by pass as render_tile does it: each pixel
 // gets its samples image(i, s) up to the pass's end, then every stream k of
@@ -148,14 +137,7 @@ TEST(Controls, AdaptiveSamplingStopsConvergedPixelsAndIsDeterministic) {
   opt.samples = 512;
   opt.adaptive_threshold = 0.1f;
   opt.adaptive_min_samples = 16;
-  opt.threads = 1;
-  const Result one = render(s, opt);
-  opt.threads = 0;
-  opt.tile_size = 5;
-  const Result all = render(s, opt);
-  ASSERT_EQ(one.px.size(), all.px.size());
-  EXPECT_EQ(0, std::memcmp(one.px.data(), all.px.data(), one.px.size() * sizeof(float)));
-  EXPECT_EQ(one.stats.pixel_samples, all.stats.pixel_samples);
+  const Result one = fixtures::render_on_one_and_all_threads(s, opt);
   const uint64_t full = uint64_t(opt.samples) * 40 * 24;
   std::printf("adaptive, threshold 0.1: %.1f%% of the uniform samples\n", 100.0 * one.stats.pixel_samples / full);
   EXPECT_LT(one.stats.pixel_samples, full * 3 / 4);  // converged pixels stopped early

@@ -8,20 +8,15 @@
 #include <cstring>
 
 #include "core/render.h"
+#include "render_fixtures.h"
 #include "scene_fixtures.h"
 
 using namespace tessera;
+using fixtures::mean_rgb;
+using fixtures::render;
+using fixtures::Result;
 
 namespace {
-struct Result {
-  std::vector<float> pixels;
-  RenderStats stats;
-};
-Result render(const Scene& s, RenderOptions opt) {
-  RenderSession session(s, opt);
-  session.render();
-  return {session.pixels(), session.stats()};
-}
 
 // The Cornell box with a small, very bright light on its back wall, under a
 // pixel wide at 24 x 24: every pixel it touches is an edge.
@@ -48,11 +43,6 @@ double spot_error(const std::vector<float>& a, const std::vector<float>& ref) {
       for (int c = 0; c < 3; ++c) sum += (double(a[i + c]) - ref[i + c]) * (double(a[i + c]) - ref[i + c]);
   return sum;
 }
-double mean(const std::vector<float>& a) {
-  double sum = 0.0;
-  for (size_t i = 0; i < a.size(); i += 4) sum += a[i] + a[i + 1] + a[i + 2];
-  return sum / double(a.size() / 4 * 3);
-}
 }  // namespace
 
 TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
@@ -72,8 +62,8 @@ TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
     const Result on = render(s, opt);
     opt.max_camera_rays = 1;
     const Result off = render(s, opt);
-    err_on += spot_error(on.pixels, ref.pixels), err_off += spot_error(off.pixels, ref.pixels);
-    mean_on += mean(on.pixels), mean_off += mean(off.pixels);
+    err_on += spot_error(on.px, ref.px), err_off += spot_error(off.px, ref.px);
+    mean_on += mean_rgb(on.px), mean_off += mean_rgb(off.px);
     rays_on += on.stats.rays, rays_off += off.stats.rays;
   }
   // Extra camera rays were traced, on a few pixels only.
@@ -81,8 +71,8 @@ TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
   EXPECT_LT(double(rays_on), 1.25 * double(rays_off));
   // Same expectation: both means agree with the reference's (the spot is
   // most of the image's light, so a wrong weight would show here).
-  EXPECT_NEAR(mean_on / seeds / mean(ref.pixels), 1.0, 0.02);
-  EXPECT_NEAR(mean_off / seeds / mean(ref.pixels), 1.0, 0.02);
+  EXPECT_NEAR(mean_on / seeds / mean_rgb(ref.px), 1.0, 0.02);
+  EXPECT_NEAR(mean_off / seeds / mean_rgb(ref.px), 1.0, 0.02);
   // Far less error on the spot (0.11 of it when written).
   EXPECT_GT(err_off, 0.0);
   EXPECT_LT(err_on, 0.3 * err_off) << "split " << err_on / seeds << " unsplit " << err_off / seeds;
@@ -105,7 +95,7 @@ TEST(EmitterAntialiasing, SceneWhoseCameraSeesNoEmissionIsUnchanged) {
   opt.max_camera_rays = 1;
   const Result off = render(s, opt);
   EXPECT_EQ(on.stats.rays, off.stats.rays);
-  EXPECT_EQ(0, std::memcmp(on.pixels.data(), off.pixels.data(), on.pixels.size() * sizeof(float)));
+  EXPECT_EQ(0, std::memcmp(on.px.data(), off.px.data(), on.px.size() * sizeof(float)));
 }
 
 TEST(EmitterAntialiasing, SplitPixelsDoNotDependOnThreadsTilesOrTheRegion) {
@@ -113,19 +103,13 @@ TEST(EmitterAntialiasing, SplitPixelsDoNotDependOnThreadsTilesOrTheRegion) {
   build_box_with_bright_spot(s);
   RenderOptions opt;
   opt.samples = 32;
-  opt.threads = 1;
-  const Result one = render(s, opt);
-  opt.threads = 0;
-  opt.tile_size = 5;
-  const Result all = render(s, opt);
-  ASSERT_EQ(one.pixels.size(), all.pixels.size());
-  EXPECT_EQ(0, std::memcmp(one.pixels.data(), all.pixels.data(), one.pixels.size() * sizeof(float)));
+  const Result one = fixtures::render_on_one_and_all_threads(s, opt);
   // A region around the spot: its pixels choose as in the full frame.
   opt.region_x0 = 8, opt.region_x1 = 24, opt.region_y0 = 4, opt.region_y1 = 16;
   const Result part = render(s, opt);
-  ASSERT_EQ(part.pixels.size(), size_t(16 * 12 * 4));
+  ASSERT_EQ(part.px.size(), size_t(16 * 12 * 4));
   for (int y = 0; y < 12; ++y)
     for (int x = 0; x < 16; ++x)
       for (int c = 0; c < 4; ++c)
-        ASSERT_EQ(part.pixels[4 * (y * 16 + x) + c], one.pixels[4 * ((y + 4) * 24 + x + 8) + c]) << x << " " << y;
+        ASSERT_EQ(part.px[4 * (y * 16 + x) + c], one.px[4 * ((y + 4) * 24 + x + 8) + c]) << x << " " << y;
 }
