@@ -63,4 +63,17 @@ inline void build_cornell_box(Scene& s, int width = 32, int height = 32, const m
   if (commit) s.commit();
 }
 
+// The same box with its emissive quad turned off, lit by a point light
+// under the ceiling instead: nothing a ray can hit emits.
+inline void build_cornell_box_lit_by_a_point_light(Scene& s, int width, int height) {
+  build_cornell_box(s, width, height, mat4(1.0f), 1.0f, /*commit=*/false);
+  s.materials[3].emission_front = s.materials[3].emission_back = vec3(0.0f);
+  Light point;
+  point.type = LightType::Point;
+  point.position = vec3(0.0f, 0.8f, 0.0f);
+  point.radiance = vec3(5.0f);
+  s.lights.push_back(point);
+  s.commit();
+}
+
 }  // namespace tessera::fixtures

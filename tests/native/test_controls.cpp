@@ -611,14 +611,7 @@ TEST(Controls, SceneWithoutHittableEmittersSkipsTheLastRay) {
   // Lit by a point light only: a BSDF-sampled ray can hit no emitter, so the
   // ray after the last bounce is not traced. Same radiance, fewer rays.
   Scene s;
-  fixtures::build_cornell_box(s, 16, 16);
-  s.materials[3].emission_front = s.materials[3].emission_back = vec3(0.0f);
-  Light point;
-  point.type = LightType::Point;
-  point.position = vec3(0.0f, 0.8f, 0.0f);
-  point.radiance = vec3(5.0f);
-  s.lights.push_back(point);
-  s.commit();
+  fixtures::build_cornell_box_lit_by_a_point_light(s, 16, 16);
   const SceneFeatures f = scene_features(s);
   EXPECT_TRUE(f.emits);
   EXPECT_FALSE(f.hittable_emitters);

@@ -80,14 +80,7 @@ TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
 
 TEST(EmitterAntialiasing, SceneWhoseCameraSeesNoEmissionIsUnchanged) {
   Scene s;
-  fixtures::build_cornell_box(s, 16, 16, mat4(1.0f), 1.0f, /*commit=*/false);
-  s.materials[3].emission_front = s.materials[3].emission_back = vec3(0.0f);
-  Light point;
-  point.type = LightType::Point;
-  point.position = vec3(0.0f, 0.8f, 0.0f);
-  point.radiance = vec3(5.0f);
-  s.lights.push_back(point);
-  s.commit();
+  fixtures::build_cornell_box_lit_by_a_point_light(s, 16, 16);
   EXPECT_FALSE(scene_features(s).camera_emission);
   RenderOptions opt;
   opt.samples = 16;
