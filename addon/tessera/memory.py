@@ -6,11 +6,12 @@ import os
 
 # Per pixel of the rendered region: the core's film (film.h: sum and
 # odd-sample half sum, 2 x 12 bytes; sum of squares, 8; brightest sample and
-# its index, 16; sample count, replicate slot and adaptive flag, 9: 57), the
-# RGBA float copy handed to Python (16), the numpy buffer written into
-# Blender's result (16) and Blender's own Combined pass (16), rounded up for
-# the display and file buffers Blender makes from it.
-BYTES_PER_PIXEL = 112
+# its index, 16; sample count, replicate slot and adaptive flag, 9; emitter
+# antialiasing's statistics and extra camera rays, 21: 78), the RGBA float
+# copy handed to Python (16), the numpy buffer written into Blender's result
+# (16) and Blender's own Combined pass (16), rounded up for the display and
+# file buffers Blender makes from it.
+BYTES_PER_PIXEL = 136
 # Each further pass: its film buffer, its copy and Blender's pass.
 BYTES_PER_EXTRA_PASS = 48
 

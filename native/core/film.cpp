@@ -122,11 +122,13 @@ void Film::restart(size_t i) {
 int Film::wanted_camera_rays_log2(size_t i, int max_log2) const {
   const int n = count_[i];
   if (n < 2) return 0;
+  // Of the RGB sums of Le and the rest.
   const CameraEmissionStats& st = le_stats_[i];
-  const vec3 le = st.sum_le / float(n), rest = sum_[i] / float(n) - le;  // the rest's mean: the pixel's, split or not
-  const double var_le = (double(st.sum_le_sq) - n * double(glm::dot(le, le))) / double(n - 1);
-  const double cov = (double(st.sum_le_rest) - n * double(glm::dot(le, rest))) / double(n - 1);
-  const double var_rest = std::max(0.0, (double(st.sum_rest_sq) - n * double(glm::dot(rest, rest))) / double(n - 1));
+  const double m = double(sum_[i].x) + sum_[i].y + sum_[i].z;
+  const double le = double(st.sum_le) / n, rest = m / n - le;  // the rest's mean: the pixel's, split or not
+  const double var_le = (double(st.sum_le_sq) - n * le * le) / double(n - 1);
+  const double cov = (double(st.sum_le_rest) - n * le * rest) / double(n - 1);
+  const double var_rest = std::max(0.0, (double(st.sum_rest_sq) - n * rest * rest) / double(n - 1));
   const double g = var_le + 2.0 * cov;
   if (!(g > 0.0)) return 0;
   // The rest's variance counts as at least (kSplitNoiseFloor x the pixel's
@@ -134,8 +136,7 @@ int Film::wanted_camera_rays_log2(size_t i, int max_log2) const {
   // seen directly through a window, an HDRI's texture) is split only where
   // that emission varies a lot next to its value, not for variations too
   // small to matter to the image's error.
-  const vec3 m = sum_[i] / float(n);
-  const double floor = kSplitNoiseFloor * kSplitNoiseFloor * double(glm::dot(m, m));
+  const double floor = kSplitNoiseFloor * kSplitNoiseFloor * (m / n) * (m / n);
   const double c = std::min(0.5, double(n) / std::max(double(st.path_rays), 1.0));
   const double k = std::sqrt(g * (1.0 - c) / (std::max(var_rest, floor) * c)) - 1.0;
   if (!(k >= 0.0)) return 0;

@@ -110,10 +110,11 @@ class Film {
   bool has_camera_emission() const { return !le_stats_.empty(); }
   void add_camera_emission(size_t i, const vec3& le, const vec3& rest) {
     CameraEmissionStats& st = le_stats_[i];
-    st.sum_le += le;
-    st.sum_le_sq += glm::dot(le, le);
-    st.sum_le_rest += glm::dot(le, rest);
-    st.sum_rest_sq += glm::dot(rest, rest);
+    const float e = le.x + le.y + le.z, r = rest.x + rest.y + rest.z;
+    st.sum_le += e;
+    st.sum_le_sq += e * e;
+    st.sum_le_rest += e * r;
+    st.sum_rest_sq += r * r;
   }
   void add_path_rays(size_t i, uint64_t rays) { le_stats_[i].path_rays += float(rays); }
   // log2 of the extra camera rays per sample that make pixel i's error over
@@ -167,12 +168,11 @@ class Film {
   std::vector<uint8_t> active_;
   std::vector<vec3> max_;  // per pixel: its brightest sample (largest RGB sum)
   std::vector<int> max_index_;  // per pixel: that sample's index
-  // Per pixel, sums over its samples (RGB dot products): camera emission,
-  // its square, its product with the rest of the path, the rest's square,
-  // and the rays of the paths (not counting extra camera rays).
+  // Per pixel, sums over its samples (of RGB sums, 20 bytes): camera
+  // emission, its square, its product with the rest of the path, the rest's
+  // square, and the rays of the paths (not counting extra camera rays).
   struct CameraEmissionStats {
-    vec3 sum_le{0.0f};
-    float sum_le_sq = 0.0f, sum_le_rest = 0.0f, sum_rest_sq = 0.0f, path_rays = 0.0f;
+    float sum_le = 0.0f, sum_le_sq = 0.0f, sum_le_rest = 0.0f, sum_rest_sq = 0.0f, path_rays = 0.0f;
   };
   std::vector<CameraEmissionStats> le_stats_;  // empty: not kept
   std::vector<uint8_t> split_;                 // per pixel: log2 of its extra camera rays per sample (0: none)
