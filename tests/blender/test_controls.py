@@ -67,3 +67,18 @@ def test_error_target_is_reached(cornell):
     s = stats()
     assert s["stop_reason"] == "error target"
     assert s["estimated_error"] < 0.2
+
+
+def test_emitter_antialiasing_traces_more_camera_rays_on_the_lights_edge_only(cornell):
+    # The light is seen directly: its edge pixels trace extra camera rays for
+    # their emission when the setting allows it, a few pixels' worth; the
+    # image keeps its mean.
+    cornell.tessera.estimate_error = False
+    cornell.tessera.max_camera_rays = 1
+    off = render(cornell, 'TESSERA', samples=16)
+    rays_off = stats()["rays"]
+    cornell.tessera.max_camera_rays = 64
+    on = render(cornell, 'TESSERA', samples=16)
+    rays_on = stats()["rays"]
+    assert rays_off < rays_on < 1.25 * rays_off
+    assert abs(on[..., :3].mean() / off[..., :3].mean() - 1.0) < 0.05
