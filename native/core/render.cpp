@@ -49,7 +49,7 @@ void RenderSession::render_tile(int tile, PathCounters& counters) {
 void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& counters) {
   const size_t i = size_t(py - y0_) * width() + (px - x0_);
   const int sample_begin = film_.count(i);
-  const int camera_rays = film_.extra_camera_rays(i);
+  const int extra_rays = film_.extra_camera_rays(i);
   const bool keep_le = film_.has_camera_emission();
   const uint64_t rays_before = counters.rays;
   for (int s = sample_begin; s < sample_end; ++s) {
@@ -57,15 +57,15 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
     // reproduces the full render's pixels exactly.
     vec3 le, rest;
     if (!data_passes_.mask()) {
-      film_.add(i, s, sample(px, py, s, options_.seed, camera_rays, counters, nullptr, keep_le ? &le : nullptr, &rest));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, keep_le ? &le : nullptr, &rest));
     } else {
       FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
-      film_.add(i, s, sample(px, py, s, options_.seed, camera_rays, counters, &first, keep_le ? &le : nullptr, &rest));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, keep_le ? &le : nullptr, &rest));
       data_passes_.add(i, first);
     }
     if (keep_le) film_.add_camera_emission(i, le, rest);
   }
-  if (keep_le) film_.add_path_rays(i, counters.rays - rays_before - uint64_t(camera_rays) * (sample_end - sample_begin));
+  if (keep_le) film_.add_path_rays(i, counters.rays - rays_before - uint64_t(extra_rays) * (sample_end - sample_begin));
   if (sample_end > sample_begin) film_.set_count(i, sample_end);
   // The error estimate's replicates (film.h): the pixel's samples from
   // independently scrambled streams, kept apart from the image, brought
@@ -77,7 +77,7 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
   if (to <= from) return;
   for (int k = 0; k < film_.replicate_streams(slot); ++k)
     for (int s = from; s < to; ++s)
-      film_.add_replicate(slot, k, sample(px, py, s, options_.seed + uint32_t(k + 1) * kReplicateSeed, camera_rays,
+      film_.add_replicate(slot, k, sample(px, py, s, options_.seed + uint32_t(k + 1) * kReplicateSeed, extra_rays,
                                           counters, nullptr, nullptr, nullptr));
   film_.set_replicate_samples(slot, to);
 }
@@ -153,10 +153,10 @@ Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
   return scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
 }
 
-vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int camera_rays, PathCounters& counters,
+vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters,
                            FirstHit* first, vec3* camera_le, vec3* rest) const {
-  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed);
-  if (camera_rays == 0) {
+  if (extra_rays == 0) {
+    Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed);
     const Ray ray = camera_ray(px, py, sampler);
     const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, camera_le);
     if (camera_le && rest) *rest = L - *camera_le;
@@ -165,7 +165,7 @@ vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int camera_rays
   // Emitter antialiasing: the pixel integral of the path's radiance is that
   // of the emission the camera ray sees first plus that of the rest, and the
   // first term, whose edges against bright lights carry a pixel's error,
-  // gets K = camera_rays more camera rays per sample while the path goes on
+  // gets K = extra_rays more camera rays per sample while the path goes on
   // from its own: Le(x_0) + rest(x_0) becomes rest(x_0) + (Le(x_0) +
   // sum_j Le(y_j)) / (K + 1), the same expectation. The path's x_0 over the
   // samples stays a (0,2)-sequence (the rest has edges too: from the stream's
@@ -176,19 +176,19 @@ vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int camera_rays
   // pixel's are the first n K points of one (0,2)-sequence. A split pixel
   // starts over (choose_camera_rays) with its path's numbers from another
   // stream, apart from the samples that chose to split it.
-  sampler = Sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed ^ kSplitPathSeed);
+  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed ^ kSplitPathSeed);
   const Ray ray = camera_ray(px, py, sampler);
   vec3 le0;
   const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, &le0);
-  const uint32_t first_ray = uint32_t(s) * uint32_t(camera_rays);
+  const uint32_t first_ray = uint32_t(s) * uint32_t(extra_rays);
   vec3 le_sum = le0;
-  for (int k = 0; k < camera_rays; ++k) {
+  for (int k = 0; k < extra_rays; ++k) {
     Sampler extra(uint32_t(px), uint32_t(py), first_ray + uint32_t(k), seed ^ kCameraRaySeed);
     le_sum += camera_emission(scene_, camera_ray(px, py, extra), options_, counters);
   }
   if (camera_le) *camera_le = le0;
   if (rest) *rest = L - le0;
-  return L - le0 + le_sum / float(camera_rays + 1);
+  return L - le0 + le_sum / float(extra_rays + 1);
 }
 
 std::vector<std::pair<size_t, int>> RenderSession::choose_camera_rays() {

@@ -84,10 +84,10 @@ class RenderSession {
   // The camera ray of pixel (px, py) of the full frame for the sampler's sample.
   Ray camera_ray(int px, int py, Sampler& sampler) const;
   // Sample s of pixel (px, py) with scrambling seed `seed`: the path's
-  // radiance, its camera emission term averaged over its own and camera_rays
+  // radiance, its camera emission term averaged over its own and extra_rays
   // more camera rays (emitter antialiasing); camera_le and rest (not null) get the path's own
   // camera emission (Li) and the rest of its radiance.
-  vec3 sample(int px, int py, int s, uint32_t seed, int camera_rays, PathCounters& counters, FirstHit* first,
+  vec3 sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters, FirstHit* first,
               vec3* camera_le, vec3* rest) const;
   // Emitter antialiasing's choice, between passes: each pixel's extra camera
   // rays per sample from its camera emission statistics (render.cpp);
