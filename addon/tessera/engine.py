@@ -250,6 +250,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                    f"{pixel_samples_per_s / 1e6:.3f} Msamples/s, {rays_per_s / 1e6:.2f} Mrays/s, "
                    + (f"estimated error {100 * rs['estimated_error']:.2f}%" if rs["estimated_error"] > 0
                       else "error not estimated (Estimate Error is off)"))
+        if rs["antialiased_pixels"]:
+            summary += f", emitter antialiasing on {rs['antialiased_pixels']} pixels"
         if rs["invalid_samples"]:
             summary += f", {rs['invalid_samples']} NaN/Inf samples discarded"
         print(summary)
@@ -261,6 +263,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                                  pixel_samples=rs["pixel_samples"], samples_per_second=pixel_samples_per_s,
                                  mean_samples=mean_spp, estimated_error=rs["estimated_error"],
                                  stop_reason=rs["stop_reason"], active_pixels=rs["active_pixels"],
+                                 antialiased_pixels=rs["antialiased_pixels"],
                                  warnings=list(report.warnings), display_updates=display_updates,
                                  progress_updates=progress_updates, final_progress=progress)
 

@@ -457,6 +457,9 @@ void RenderSession::render() {
   stats_.pixel_samples = pixel_samples_.load();
   stats_.estimated_error = estimated_error_.load();
   stats_.active_pixels = active;
+  stats_.antialiased_pixels = 0;
+  if (film_.has_camera_emission())
+    for (size_t i = 0; i < num_pixels; ++i) stats_.antialiased_pixels += film_.extra_camera_rays(i) > 0;
   stats_.cancelled = cancel_.load();
   stats_.stop_reason = stats_.cancelled ? "cancelled" : stop_reason;
 }

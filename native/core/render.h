@@ -26,6 +26,7 @@ struct RenderStats {
   uint64_t pixel_samples = 0;  // samples taken, over all pixels
   double estimated_error = 0.0;  // Film::estimated_relative_error at the end
   size_t active_pixels = 0;    // pixels adaptive sampling had not stopped
+  size_t antialiased_pixels = 0;  // pixels with extra camera rays (emitter antialiasing)
   // Why the render ended: "samples", "noise threshold" (every pixel
   // converged), "error target", "time limit", "cancelled".
   const char* stop_reason = "samples";

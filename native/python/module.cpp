@@ -160,6 +160,7 @@ class PySession {
     d["pixel_samples"] = s.pixel_samples;
     d["estimated_error"] = s.estimated_error;
     d["active_pixels"] = s.active_pixels;
+    d["antialiased_pixels"] = s.antialiased_pixels;
     d["stop_reason"] = std::string(s.stop_reason);
     d["cancelled"] = s.cancelled;
     return d;

@@ -77,8 +77,11 @@ def test_emitter_antialiasing_traces_more_camera_rays_on_the_lights_edge_only(co
     cornell.tessera.max_camera_rays = 1
     off = render(cornell, 'TESSERA', samples=16)
     rays_off = stats()["rays"]
+    assert stats()["antialiased_pixels"] == 0
     cornell.tessera.max_camera_rays = 64
     on = render(cornell, 'TESSERA', samples=16)
     rays_on = stats()["rays"]
+    pixels_on = stats()["antialiased_pixels"]
     assert rays_off < rays_on < 1.25 * rays_off
+    assert 0 < pixels_on < 0.1 * 48 * 48
     assert abs(on[..., :3].mean() / off[..., :3].mean() - 1.0) < 0.05

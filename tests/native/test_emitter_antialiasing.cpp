@@ -65,6 +65,10 @@ TEST(EmitterAntialiasing, KeepsTheImageAndTakesTheErrorOffABrightLightsEdges) {
     err_on += spot_error(on.px, ref.px), err_off += spot_error(off.px, ref.px);
     mean_on += mean_rgb(on.px), mean_off += mean_rgb(off.px);
     rays_on += on.stats.rays, rays_off += off.stats.rays;
+    // The spot's few pixels, and its edge's neighbours where the spot shows.
+    EXPECT_GT(on.stats.antialiased_pixels, 0u);
+    EXPECT_LT(on.stats.antialiased_pixels, 40u);
+    EXPECT_EQ(off.stats.antialiased_pixels, 0u);
   }
   // Extra camera rays were traced, on a few pixels only.
   EXPECT_GT(rays_on, rays_off);
@@ -88,6 +92,7 @@ TEST(EmitterAntialiasing, SceneWhoseCameraSeesNoEmissionIsUnchanged) {
   opt.max_camera_rays = 1;
   const Result off = render(s, opt);
   EXPECT_EQ(on.stats.rays, off.stats.rays);
+  EXPECT_EQ(on.stats.antialiased_pixels, 0u);
   EXPECT_EQ(0, std::memcmp(on.px.data(), off.px.data(), on.px.size() * sizeof(float)));
 }
 
