@@ -158,6 +158,9 @@ class Film {
   // the grid alone, nothing added. 0 without replicates.
   static constexpr double kFireflyThreshold = 16.0;
   static constexpr double kFireflyDominance = 2.0;  // x the sum of the pixel's other samples
+  // Fewer of the grid's pixels than this near a bright sample: the unfollowed
+  // pixels there count the whole grid's mean (film.cpp).
+  static constexpr size_t kMinNearGridPixels = 4;
   double estimated_relative_error(double firefly_threshold = kFireflyThreshold);
 
  private:
