@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds bench_bvh (Tessera vs Embree; needs libembree-dev) into build-bench/
-# (or $BENCH_BUILD_DIR),
+# (or $BENCH_BUILD_DIR), installing libembree-dev first if it is missing,
 # runs it on the shared meshes and writes docs/BVH_BENCHMARK.md.
 # Usage: [REPEAT=n] scripts/bench_bvh.sh [extra bench_bvh options, e.g. --runs 3 --res 512]
 # The benchmark runs REPEAT times (default 3, separate processes); every
@@ -10,6 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 MESHES_DIR=${TESSERA_MESHES:-../shared/meshes}
 BUILD=${BENCH_BUILD_DIR:-build-bench}
+scripts/install_packages.sh libembree-dev
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DTESSERA_BENCHMARKS=ON -DTESSERA_TESTS=OFF \
   -DPYTHON_EXECUTABLE="${TESSERA_PYTHON:-/usr/bin/python3}" >/dev/null
 cmake --build "$BUILD" -j"$(nproc)" --target bench_bvh >/dev/null

@@ -8,17 +8,7 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(blender cmake g++ make pybind11-dev libglm-dev libtbb-dev python3-dev python3-venv python3-numpy python3-pytest
           googletest libgtest-dev clang libclang-rt-14-dev python3-matplotlib)
-missing=()
-for p in "${PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-  echo "tessera setup: installing ${missing[*]}"
-  SUDO=""
-  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+scripts/install_packages.sh "${PACKAGES[@]}"
 
 scripts/build.sh
 scripts/install_addon.sh
