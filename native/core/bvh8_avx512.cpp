@@ -16,7 +16,8 @@
 //   exactly the insertion sort's order (nearest first, equal distances by
 //   lane), and the sorted keys, with each lane replaced by its child reference,
 //   are the stack entries themselves: one 64-byte store pushes them all;
-// - any hit pushes the hit children with one compress (vpcompressd) and store.
+// - any hit pushes the hit children with one compress (vpcompressd) and store,
+//   and does not prefetch them.
 // Headers come before the target pragma (see bvh8_avx2.cpp). AVX-512F makes
 // GCC contract a * b + c into FMA (even across intrinsics), which would
 // change the triangle test's rounding: fp-contract is off for everything
@@ -378,8 +379,9 @@ bool occluded8x(const char* base, Ray8x& ray) {
           const __m256i refs = _mm256_load_si256(reinterpret_cast<const __m256i*>(n.child));
           _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + sp), _mm256_maskz_compress_epi32(__mmask8(rest), refs));
           sp += __builtin_popcount(rest);
-          // Any-hit visits every pushed node unless it stops: fetch them now.
-          for (unsigned m = rest; m; m &= m - 1) prefetch_interior(base, ref, n.child[__builtin_ctz(m)]);
+          // No prefetch of the pushed nodes: their four lines each cost more
+          // than they saved (AMD Zen 5: shadow rays 2-10% faster without;
+          // docs/BVH_BENCHMARK.md), unlike closest hit's random rays.
         }
         ref = n.child[__builtin_ctz(mask)];
         continue;
