@@ -308,8 +308,9 @@ for path in args.scenes:
         w.writerows(rows)
 
     cmd = "blender -b --factory-startup --python scripts/convergence.py -- " + " ".join(argv)
+    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), "unknown CPU")
     lines = ["# Convergence: error against time, Tessera and Cycles", "",
-             f"Blender {bpy.app.version_string}, {os.cpu_count()} cores shared with other work, width {args.width} px, "
+             f"Blender {bpy.app.version_string}, {cpu}, {os.cpu_count()} cores, {time.strftime('%Y-%m-%d')}, width {args.width} px, "
              f"{args.bounces} max bounces, references {args.ref_samples} samples (seed 1000). Each point of the sample "
              f"ladder: {args.runs} renders per engine (seeds 0..{args.runs - 1}, the engines taking turns), time = their "
              "median wall time, RMSE = sqrt of their mean MSE (the expected error; one image's error swings with its "
