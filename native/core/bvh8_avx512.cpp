@@ -188,13 +188,14 @@ inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& nea
   return _mm256_cmple_epi32_mask(near, far);
 }
 
-// The node test of the traversal loops: the root by the subtract-then-
-// multiply form, from the origins, which needs no c; the chain that makes c
-// (o inv after the division, then its rounding) then runs beside the root's
-// loads and test instead of before them. Every ray tests the root, and a
-// random ray few nodes more (modern_hall: 2.1): with the root by
-// multiply-add, random rays were 4% slower there than with no multiply-add
-// at all, primary rays (6.2 nodes) 3% faster; with it they gain on both.
+// The node test of the traversal loops: the root (ref 0) by the subtract-
+// then-multiply form, from the origins, which needs no c; the chain that
+// makes c (o inv after the division, then its rounding) then runs beside the
+// root's loads and test instead of before them. Every ray tests the root,
+// and a random ray few nodes more (modern_hall: 2.1). With every node by
+// multiply-add, random rays there were 4% slower than with none, primary
+// rays (6.2 nodes) 3% faster; with the root apart, random rays are as fast
+// as with none and primary rays keep the gain (docs/BVH_BENCHMARK.md).
 template <bool kFma>
 inline __mmask8 node_test(const BVH8Node& n, uint32_t ref, const Ray8x& r, __m256i& near) {
   return kFma && ref != 0 ? intersect_node8x<true>(n, r, near) : intersect_node8x<false>(n, r, near);
