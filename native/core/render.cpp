@@ -56,11 +56,13 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
     // Pixel coordinates are those of the full frame, so a region render
     // reproduces the full render's pixels exactly.
     vec3 le, rest;
+    vec3* le_out = keep_le ? &le : nullptr;
+    vec3* rest_out = keep_le ? &rest : nullptr;
     if (!data_passes_.mask()) {
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, keep_le ? &le : nullptr, &rest));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, le_out, rest_out));
     } else {
       FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, keep_le ? &le : nullptr, &rest));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, le_out, rest_out));
       data_passes_.add(i, first);
     }
     if (keep_le) film_.add_camera_emission(i, le, rest);
@@ -155,13 +157,6 @@ Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
 
 vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters,
                            FirstHit* first, vec3* camera_le, vec3* rest) const {
-  if (extra_rays == 0) {
-    Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed);
-    const Ray ray = camera_ray(px, py, sampler);
-    const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, camera_le);
-    if (camera_le && rest) *rest = L - *camera_le;
-    return L;
-  }
   // Emitter antialiasing: the pixel integral of the path's radiance is that
   // of the emission the camera ray sees first plus that of the rest, and the
   // first term, whose edges against bright lights carry a pixel's error,
@@ -176,18 +171,20 @@ vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays,
   // pixel's are the first n K points of one (0,2)-sequence. A split pixel
   // starts over (choose_camera_rays) with its path's numbers from another
   // stream, apart from the samples that chose to split it.
-  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), seed ^ kSplitPathSeed);
+  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), extra_rays == 0 ? seed : seed ^ kSplitPathSeed);
   const Ray ray = camera_ray(px, py, sampler);
-  vec3 le0;
-  const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first, &le0);
+  vec3 le0(0.0f);
+  const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first,
+                    extra_rays > 0 || camera_le || rest ? &le0 : nullptr);
+  if (camera_le) *camera_le = le0;
+  if (rest) *rest = L - le0;
+  if (extra_rays == 0) return L;
   const uint32_t first_ray = uint32_t(s) * uint32_t(extra_rays);
   vec3 le_sum = le0;
   for (int k = 0; k < extra_rays; ++k) {
     Sampler extra(uint32_t(px), uint32_t(py), first_ray + uint32_t(k), seed ^ kCameraRaySeed);
     le_sum += camera_emission(scene_, camera_ray(px, py, extra), options_, counters);
   }
-  if (camera_le) *camera_le = le0;
-  if (rest) *rest = L - le0;
   return L - le0 + le_sum / float(extra_rays + 1);
 }
 

@@ -86,8 +86,8 @@ class RenderSession {
   Ray camera_ray(int px, int py, Sampler& sampler) const;
   // Sample s of pixel (px, py) with scrambling seed `seed`: the path's
   // radiance, its camera emission term averaged over its own and extra_rays
-  // more camera rays (emitter antialiasing); camera_le and rest (not null) get the path's own
-  // camera emission (Li) and the rest of its radiance.
+  // more camera rays (emitter antialiasing); camera_le and rest (each if not null) get the
+  // path's own camera emission (Li) and the rest of its radiance.
   vec3 sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters, FirstHit* first,
               vec3* camera_le, vec3* rest) const;
   // Emitter antialiasing's choice, between passes: each pixel's extra camera
