@@ -261,11 +261,6 @@ void RenderSession::render() {
   constexpr int kMinSamplesForErrorTarget = 8;
   constexpr int kAdaptiveConfirmations = 2;
   constexpr int kMinSamplesForCameraRays = 4;
-  // Adaptive sampling decides at pass boundaries, two in a row: from its
-  // minimum on, passes of this many samples let a pixel stop at most two of
-  // them after its error fell under the threshold (passes of 16 let it run up
-  // to 32 samples more; Cycles checks every 16, once).
-  constexpr int kAdaptivePass = 4;
   std::vector<int> converged_passes(adaptive ? num_pixels : 0, 0);
   std::vector<uint8_t> stop_now(adaptive ? num_pixels : 0, 0);
   const char* stop_reason = "samples";
@@ -273,8 +268,7 @@ void RenderSession::render() {
   size_t active = num_pixels;
   double seconds_per_pixel_sample = 0.0;  // measured, for sizing passes under a time limit
   // Passes of 1, 1, 2, 4, ... up to 16 samples: quick first feedback, then
-  // fewer display updates (with adaptive sampling, kAdaptivePass from its
-  // minimum on). Without a time limit the pass boundaries depend
+  // fewer display updates. Without a time limit the pass boundaries depend
   // only on the settings, never on threads or timing.
   int pass = 1;
   if (!features_.emits && !data_passes_.mask()) {
@@ -442,7 +436,7 @@ void RenderSession::render() {
       stop_reason = "noise threshold";
       break;
     }
-    if (done > 1) pass = adaptive && !by_error && done >= min_adaptive ? kAdaptivePass : std::min(pass * 2, 16);
+    if (done > 1) pass = std::min(pass * 2, 16);
     more = done < total;
   }
   PathCounters all;

@@ -150,8 +150,8 @@ def test_noise_threshold_means_what_it_means_in_cycles():
     scene, maximum and minimum samples, the mean Debug Sample Count of the two
     engines within a factor 2. (Cycles compares the same error with 5 times
     the setting, but its error comes out larger: taking that factor over made
-    Tessera stop at 26 samples on average here where Cycles takes 131, and
-    Tessera 181 without it.)"""
+    Tessera stop at about 26 samples on average here where Cycles takes 131;
+    without it Tessera takes 210.)"""
     scene = passes_scene(48)
     enable_passes(scene, False)
     vl = scene.view_layers[0]

@@ -148,29 +148,6 @@ TEST(Controls, AdaptiveSamplingStopsConvergedPixelsAndIsDeterministic) {
   EXPECT_EQ(uint64_t(32) * 40 * 24, render(s, opt).stats.pixel_samples);
 }
 
-// A pixel whose error is under the threshold stops one short pass after its
-// minimum: it must be under at two pass boundaries in a row, and from the
-// minimum on adaptive passes take 4 samples (they took 16, so such a pixel
-// ran to 32 with a minimum of 16). Here every pixel sees one colour of the
-// world, error 0.
-TEST(Controls, AdaptiveSamplingStopsAConvergedPixelOneShortPassAfterItsMinimum) {
-  Scene s;
-  s.background.set_color(vec3(0.5f, 0.25f, 1.0f));
-  Camera& c = s.camera;
-  c.left = c.bottom = -0.3f;
-  c.right = c.top = 0.3f;
-  c.width = 12;
-  c.height = 8;
-  s.commit();
-  RenderOptions opt;
-  opt.samples = 256;
-  opt.adaptive_threshold = 0.01f;
-  opt.adaptive_min_samples = 16;
-  const Result r = render(s, opt);
-  EXPECT_EQ(r.stats.pixel_samples, uint64_t(16 + 4) * 12 * 8);
-  EXPECT_NEAR(mean_rgb(r.px), (0.5 + 0.25 + 1.0) / 3.0, 1e-6);
-}
-
 TEST(Controls, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
   Scene s;
   fixtures::build_cornell_box(s, 32, 32);
