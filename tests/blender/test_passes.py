@@ -163,8 +163,8 @@ def test_noise_threshold_means_what_it_means_in_cycles():
     mean = {}
     for engine in ('TESSERA', 'CYCLES'):
         passes = render_passes(scene, engine, samples=samples, adaptive_threshold=0.05, min_samples=16)
-        if "Debug Sample Count" not in passes:
-            pytest.skip(f"{engine} wrote no Debug Sample Count pass on this Blender")
+        if engine == 'CYCLES' and "Debug Sample Count" not in passes:
+            pytest.skip("this Blender's Cycles wrote no Debug Sample Count pass")
         mean[engine] = float(passes["Debug Sample Count"][..., 0].mean()) * samples
     print(f"mean samples at noise threshold 0.05: Tessera {mean['TESSERA']:.1f}, Cycles {mean['CYCLES']:.1f}")
     assert 0.5 < mean['TESSERA'] / mean['CYCLES'] < 2.0
