@@ -1,5 +1,6 @@
 """Error against time for Tessera and Cycles, and how honest Tessera's error
-estimate is. Run inside Blender:
+estimate is. Run inside Blender, or with Blender as a Python module (`scripts/setup_bpy.sh 4.5.*`
+prints the python of its venv; `$(scripts/setup_bpy.sh 4.5.*) scripts/convergence.py -- ...`):
 
     blender -b --factory-startup --python scripts/convergence.py -- \
         /work/shared/scenes/cornell_mcguire.blend [more .blend] [--width 160] \
@@ -307,7 +308,10 @@ for path in args.scenes:
         w.writeheader()
         w.writerows(rows)
 
-    cmd = "blender -b --factory-startup --python scripts/convergence.py -- " + " ".join(argv)
+    # Blender as a Python module (the bpy wheel, scripts/setup_bpy.sh) has no binary: its python runs the script.
+    runner = ("blender -b --factory-startup --python" if bpy.app.binary_path
+              else "$(scripts/setup_bpy.sh " + ".".join(bpy.app.version_string.split(".")[:2]) + ".*)")
+    cmd = runner + " scripts/convergence.py -- " + " ".join(argv)
     cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), "unknown CPU")
     lines = ["# Convergence: error against time, Tessera and Cycles", "",
              f"Blender {bpy.app.version_string}, {cpu}, {os.cpu_count()} cores, {time.strftime('%Y-%m-%d')}, width {args.width} px, "
