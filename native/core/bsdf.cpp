@@ -507,7 +507,6 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
     // SD_USE_BUMP_MAP_CORRECTION): interpolated normals are used as they are.
     : frame_(m.model == ShadingModel::Cycles3 || m.normal_tex.valid() ? ensure_valid_reflection(ng, wo_world, ns) : ns),
       ng_(ng),
-      ns_(ns),
       wo_world_(wo_world) {
   wo_ = frame_.to_local(wo_world);
   Closure c0 = m.closure(0);
@@ -673,10 +672,10 @@ bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {
   }
   vec3 wi;
   if (l.type == Lobe::kTransparent) {
-    // Straight on, exactly; weighted against the shading normal the caller
-    // multiplies by, so that f |cos| / pdf is the closure weight / prob.
+    // Straight on, exactly; divided by the cosine the caller multiplies by
+    // (abs_cos), so that f |cos| / pdf is the closure weight / prob.
     s.wi = -wo_world_;
-    const float cos_i = std::abs(glm::dot(s.wi, ns_));
+    const float cos_i = abs_cos(s.wi);
     if (same_side(s.wi) || !(cos_i > 0.0f)) return false;
     s.f = l.tint * l.k / cos_i;
     s.pdf = l.prob;

@@ -68,6 +68,14 @@ class BSDF {
     return p;
   }
   bool sample_f(float u_lobe, vec2 u, BSDFSample& s) const;
+  // |cos theta| of w against the normal the lobes are evaluated and sampled
+  // about: the shading normal, bent where Cycles bends it
+  // (ensure_valid_reflection). The scattering integral's cosine must be this
+  // one: f and pdf come from the same frame, so f |cos| / pdf stays the
+  // lobe's weight. With the unbent normal instead, a direction almost in the
+  // bent frame's plane (glass refracting near its critical angle on a smooth
+  // mesh) had f |cos| / pdf in the hundreds: the glass bunny's fireflies.
+  float abs_cos(const vec3& w_world) const { return std::abs(glm::dot(w_world, frame_.n)); }
   // False when every lobe is a delta: light sampling cannot contribute.
   bool has_smooth_lobes() const { return has_smooth_; }
   int num_lobes() const { return num_lobes_; }
@@ -140,7 +148,6 @@ class BSDF {
 
   Frame frame_;
   vec3 ng_;
-  vec3 ns_;             // the shading normal as given (transparent samples are weighted with it)
   vec3 wo_;             // local
   vec3 wo_world_;
   int num_lobes_ = 0;

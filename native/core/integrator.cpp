@@ -194,7 +194,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     LightSample ls;
     if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
       float bsdf_pdf;
-      vec3 f = bsdf.eval(ls.wi, &bsdf_pdf) * std::abs(glm::dot(ls.wi, ns));
+      vec3 f = bsdf.eval(ls.wi, &bsdf_pdf) * bsdf.abs_cos(ls.wi);
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
         // Stop just short of the sampled light point, relative to its distance,
@@ -226,7 +226,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       // Straight on through the surface: not a bounce, and the MIS state of
       // the last scattering vertex is kept (Cycles' path_state_next for
       // LABEL_TRANSPARENT).
-      beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+      beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf);
       ++transparent_bounces;
       mis_t += hit.t;
       if (!features.hittable_emitters && transparent_bounces >= options.max_transparent_bounces) {
@@ -237,7 +237,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       if (!std::isinf(ray.tmax)) ray.tmax = std::max(ray.tmax - hit.t, 0.0f);
       continue;
     }
-    beta *= bs.f * (std::abs(glm::dot(bs.wi, ns)) / bs.pdf);
+    beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf);
     if (first) first->scattered();
     prev_bsdf_pdf = bs.pdf;
     prev_p = si.p;
