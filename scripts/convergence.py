@@ -1,6 +1,7 @@
 """Error against time for Tessera and Cycles, and how honest Tessera's error
 estimate is. Run inside Blender, or with Blender as a Python module (`scripts/setup_bpy.sh 4.5.*`
-prints the python of its venv; `$(scripts/setup_bpy.sh 4.5.*) scripts/convergence.py -- ...`):
+prints the python of its venv; `$(scripts/setup_bpy.sh 4.5.*) scripts/convergence.py -- ...`; the plots need
+matplotlib in that venv: `pip install matplotlib` with its pip):
 
     blender -b --factory-startup --python scripts/convergence.py -- \
         /work/shared/scenes/cornell_mcguire.blend [more .blend] [--width 160] \
