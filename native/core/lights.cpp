@@ -293,7 +293,15 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
                          float scene_radius) {
   lights_ = std::move(lights);
   triangles_ = std::move(triangles);
-  world_ = (world && world->emits()) ? world : nullptr;
+  // The world is sampled only where it varies over directions (an
+  // environment image), as Cycles enables its background light only for a
+  // spatially varying world shader (LightManager::test_enabled_lights). A
+  // constant world is found by the BSDF alone, with MIS weight 1: for
+  // cosine sampling under a uniform sky that is the better estimator, and
+  // the light samples it took went to it instead of the lights (a 64 px
+  // test scene under a constant sky: 1.18-1.32x Cycles' variance per sample,
+  // 0.81-0.89x after).
+  world_ = (world && world->emits() && world->has_image()) ? world : nullptr;
   hittable_lights_.clear();
   // Bounds of every bounded emitter for the BVH, with the same power
   // estimates the first step weighs the BVH, the world and suns with.

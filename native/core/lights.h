@@ -1,7 +1,8 @@
 // Light sources and light sampling for next-event estimation. A light is
 // picked in two steps: a power-weighted alias table over the light BVH (all
 // bounded emitters: point, spot and area lights, emissive triangles), the
-// world when it emits, and each sun; then, in the BVH, by the estimated
+// world when its image emits (a constant world is left to BSDF sampling, as
+// in Cycles), and each sun; then, in the BVH, by the estimated
 // contribution at the shading point (light_bvh.h). Conversions from
 // Blender's Watts follow Cycles, so that a file is as bright in both engines.
 #pragma once

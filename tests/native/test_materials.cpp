@@ -578,6 +578,30 @@ TEST(Materials, BentShadingNormalsKeepPathWeightsWhole) {
   }
 }
 
+// A constant world is left to BSDF sampling, as Cycles disables its
+// background light for a world without spatial variation: under a uniform
+// sky a Lambert plane's cosine-sampled bounce always escapes and brings the
+// albedo times the sky, so every sample is exactly that. With next-event
+// estimation of the world (uniform over the sphere, MIS-weighted) samples
+// ranged from 0.001 to 0.72 and half the light samples went below the plane.
+TEST(Materials, ConstantWorldIsFoundByTheBSDFAlone) {
+  Scene s;
+  add_square(s, 0.0f, 50.0f, add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)})));
+  s.background.set_color(vec3(1.0f));
+  look_down(s, 2.0f, 1.0f, 24);
+  s.commit();
+  EXPECT_TRUE(s.light_sampler().empty());
+  EXPECT_EQ(s.light_sampler().world_pmf(), 0.0f);
+  RenderOptions opt;
+  opt.samples = 1;
+  const std::vector<float> px = render(s, opt);
+  float lo = 1e30f, hi = -1e30f;
+  for (size_t i = 0; i < px.size(); i += 4) lo = std::min(lo, px[i]), hi = std::max(hi, px[i]);
+  std::printf("samples from %.6f to %.6f (expected 0.5)\n", lo, hi);
+  EXPECT_NEAR(lo, 0.5f, 1e-5f);
+  EXPECT_NEAR(hi, 0.5f, 1e-5f);
+}
+
 // Principled Alpha over the world: a black surface with alpha a shows (1 - a)
 // of the world; a Lambert surface of albedo 0.5 with alpha 0.5 under a
 // uniform world shows 0.5 (1 - a) + 0.5 a of it.
