@@ -65,7 +65,7 @@ SceneFeatures scene_features(const Scene& scene) {
   for (const Light& l : lights.lights())
     area = area || l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f);
   SceneFeatures f;
-  f.hittable_emitters = area || !lights.triangles().empty() || scene.background.emits();
+  f.hittable_emitters = area || lights.has_sun_disks() || !lights.triangles().empty() || scene.background.emits();
   f.emits = f.hittable_emitters || !lights.lights().empty();
   f.camera_emission = scene.background.emits();
   for (const Material& m : scene.materials) {
@@ -142,6 +142,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);
         add(bounce, beta * le * w);
       }
+      // Sun disks, seen by scattered rays only (as area lights are).
+      if (bounce > 0 && lights.has_sun_disks())
+        add(bounce, beta * lights.sun_disks_seen(ray.d, count_emission_fully ? 0.0f : prev_bsdf_pdf));
       break;
     }
 

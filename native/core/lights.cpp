@@ -370,9 +370,11 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   }
   top_ = top_weights.empty() ? AliasTable{} : AliasTable(top_weights);
   top_bvh_pmf_ = top_world_pmf_ = 0.0f;
+  sun_disks_.clear();
   for (uint32_t i = 0; i < top_entries_.size(); ++i) {
     if (top_entries_[i] == kTopBVH) top_bvh_pmf_ = top_.pmf(i);
-    if (top_entries_[i] == kTopWorld) top_world_pmf_ = top_.pmf(i);
+    else if (top_entries_[i] == kTopWorld) top_world_pmf_ = top_.pmf(i);
+    else if (lights_[top_entries_[i]].radius > 0.0f) sun_disks_.push_back({top_entries_[i], top_.pmf(i)});
   }
   // Lookup from a hit (instance, prim) to its triangle light.
   triangle_keys_.resize(triangles_.size());
@@ -520,9 +522,8 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       ls.dist = kInf;
       ls.li = l.radiance;
       ls.pdf = pmf * len2 * len / (kPi * l.radius * l.radius);
-      // Scattered rays never reach the sun disk (intersect_lights has no
-      // suns), so light sampling alone must carry it: no MIS weight.
-      ls.is_delta = true;
+      // Escaping rays see the disk too (sun_disks_seen): MIS-weighted.
+      ls.is_delta = false;
       return true;
     }
     case LightType::Area: {
@@ -576,6 +577,21 @@ float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float
   if (!area_region(lights_[light], p, &r)) return 0.0f;
   if (r.by_solid_angle) return selection_pmf(light, p, n) / r.rect.solid_angle();
   return selection_pmf(light, p, n) * dist * dist / (cos_l * r.area);
+}
+
+vec3 LightSampler::sun_disks_seen(const vec3& d, float bsdf_pdf) const {
+  vec3 sum(0.0f);
+  for (const auto& [index, pmf] : sun_disks_) {
+    const Light& l = lights_[index];
+    // d meets the plane one unit towards the sun at d / c; inside the disk
+    // of radius r = tan(half angle) when tan^2 theta = (1 - c^2) / c^2 <= r^2.
+    const float c = -glm::dot(d, l.direction);
+    if (!(c > 0.0f) || 1.0f - c * c > l.radius * l.radius * c * c) continue;
+    // sample()'s density for d: pmf |q|^3 / (pi r^2), |q| = 1 / c.
+    const float light_pdf = pmf / (kPi * l.radius * l.radius * c * c * c);
+    sum += l.radiance * (bsdf_pdf > 0.0f ? power_heuristic(bsdf_pdf, light_pdf) : 1.0f);
+  }
+  return sum;
 }
 
 float LightSampler::pdf_background(const vec3& wi) const {

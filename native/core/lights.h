@@ -6,6 +6,7 @@
 // contribution at the shading point (light_bvh.h). Conversions from
 // Blender's Watts follow Cycles, so that a file is as bright in both engines.
 #pragma once
+#include <utility>
 #include <vector>
 #include "light_bvh.h"
 #include "material.h"
@@ -77,7 +78,7 @@ struct LightSample {
   float dist;     // distance to the light point (kInf for sun and world)
   vec3 li;        // incident radiance (or intensity / dist^2 for delta lights)
   float pdf;      // solid-angle pdf including selection; for delta lights, selection pmf only
-  bool is_delta;  // no MIS: BSDF sampling cannot hit it (delta lights, the sun disk)
+  bool is_delta;  // no MIS: BSDF sampling cannot hit it (delta lights: points, spots, suns without a radius)
 };
 
 class Background;
@@ -119,6 +120,13 @@ class LightSampler {
   // produced it (p: the scattering vertex the ray left).
   int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf, const vec3& p,
                        const vec3& n) const;
+  // Suns with an angle are disks at infinity that escaping rays see, as
+  // Cycles' integrate_distant_lights: the radiance of those whose disk the
+  // direction d lies in, each weighted by the power heuristic against its
+  // light-sampling density, d having been drawn with density bsdf_pdf (0:
+  // weight 1, after a delta bounce).
+  bool has_sun_disks() const { return !sun_disks_.empty(); }
+  vec3 sun_disks_seen(const vec3& d, float bsdf_pdf) const;
 
  private:
   // Probability that sample() from (p, n) picks light entry `entry` (lights,
@@ -130,6 +138,7 @@ class LightSampler {
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
   std::vector<uint32_t> triangle_order_; // key rank -> triangle index
   std::vector<uint32_t> hittable_lights_;  // area lights, and point/spot lights with a radius
+  std::vector<std::pair<uint32_t, float>> sun_disks_;  // suns with an angle: light index, selection pmf
   const Background* world_ = nullptr;
   // First step: the BVH (kTopBVH), the world (kTopWorld) or a sun (its light index).
   static constexpr uint32_t kTopBVH = ~0u, kTopWorld = ~0u - 1;
