@@ -520,6 +520,18 @@ uint32_t add_material(Scene& s, const Material& m) {
 void add_square(Scene& s, float z, float half, uint32_t material) {
   fixtures::add_quad(s, {-half, -half, z}, {half, -half, z}, {half, half, z}, {-half, half, z}, material);
 }
+// Renders one sample per pixel: each pixel's red channel is one path's value,
+// and every one must be `expected`.
+void expect_every_sample(const Scene& s, float expected, float tolerance) {
+  RenderOptions opt;
+  opt.samples = 1;
+  const std::vector<float> px = render(s, opt);
+  float lo = 1e30f, hi = -1e30f;
+  for (size_t i = 0; i < px.size(); i += 4) lo = std::min(lo, px[i]), hi = std::max(hi, px[i]);
+  std::printf("samples from %.6f to %.6f (expected %.6f)\n", lo, hi, expected);
+  EXPECT_NEAR(lo, expected, tolerance);
+  EXPECT_NEAR(hi, expected, tolerance);
+}
 }  // namespace
 
 // Camera -> transparent plane -> world: every sample is the world times the
@@ -567,14 +579,7 @@ TEST(Materials, BentShadingNormalsKeepPathWeightsWhole) {
     s.background.set_color(vec3(1.0f));
     look_down(s, 2.0f, 1.0f, 24);
     s.commit();
-    RenderOptions opt;
-    opt.samples = 1;
-    const std::vector<float> px = render(s, opt);
-    float lo = 1e30f, hi = -1e30f;
-    for (size_t i = 0; i < px.size(); i += 4) lo = std::min(lo, px[i]), hi = std::max(hi, px[i]);
-    std::printf("samples from %.6f to %.6f (expected 1)\n", lo, hi);
-    EXPECT_NEAR(lo, 1.0f, 1e-4f);
-    EXPECT_NEAR(hi, 1.0f, 1e-4f);
+    expect_every_sample(s, 1.0f, 1e-4f);
   }
 }
 
@@ -592,14 +597,7 @@ TEST(Materials, ConstantWorldIsFoundByTheBSDFAlone) {
   s.commit();
   EXPECT_TRUE(s.light_sampler().empty());
   EXPECT_EQ(s.light_sampler().world_pmf(), 0.0f);
-  RenderOptions opt;
-  opt.samples = 1;
-  const std::vector<float> px = render(s, opt);
-  float lo = 1e30f, hi = -1e30f;
-  for (size_t i = 0; i < px.size(); i += 4) lo = std::min(lo, px[i]), hi = std::max(hi, px[i]);
-  std::printf("samples from %.6f to %.6f (expected 0.5)\n", lo, hi);
-  EXPECT_NEAR(lo, 0.5f, 1e-5f);
-  EXPECT_NEAR(hi, 0.5f, 1e-5f);
+  expect_every_sample(s, 0.5f, 1e-5f);
 }
 
 // A sun with an angle is a disk that escaping rays see (Cycles'
