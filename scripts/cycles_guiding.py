@@ -18,7 +18,6 @@ clamping, adaptive sampling off)."""
 import argparse
 import os
 import sys
-import tempfile
 import time
 
 import bpy
@@ -26,7 +25,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
-from helpers import configure_engine, load_image, set_size  # noqa: E402
+from helpers import configure_engine, render_as_configured, set_size  # noqa: E402
 
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
 ap = argparse.ArgumentParser()
@@ -45,25 +44,16 @@ if not getattr(_cycles, "with_path_guiding", False):
 
 
 def render(scene, samples, seed, guiding):
-    """The render call's wall time and its pixels (RGB, float32)."""
+    """The render call's wall time (with its EXR write, as the convergence study) and its pixels (RGB)."""
     configure_engine(scene, "CYCLES", samples=samples, seed=seed)
     c = scene.cycles
     c.use_guiding = guiding
     c.use_surface_guiding = guiding
     c.use_volume_guiding = False
     c.use_deterministic_guiding = True
-    r = scene.render
-    r.image_settings.file_format = 'OPEN_EXR'
-    r.image_settings.color_depth = '32'
-    r.use_compositing = False
-    r.use_sequencer = False
-    r.filepath = os.path.join(tempfile.mkdtemp(prefix="tessera_guiding_"), "cycles.exr")
     t = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    t = time.perf_counter() - t
-    px = load_image(r.filepath)[..., :3]
-    os.remove(r.filepath)
-    return t, px
+    px = render_as_configured(scene, "CYCLES")
+    return time.perf_counter() - t, px[..., :3]
 
 
 rows = []

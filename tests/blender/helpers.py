@@ -78,6 +78,11 @@ def configure_engine(scene, engine, samples=64, bounces=8, seed=0, threads=0, ad
 def render(scene, engine, samples=64, bounces=8, seed=0, threads=0, adaptive_threshold=None):
     """Renders the scene's camera view; returns float32 (H, W, 4), rows top to bottom."""
     configure_engine(scene, engine, samples, bounces, seed, threads, adaptive_threshold)
+    return render_as_configured(scene, engine)
+
+
+def render_as_configured(scene, engine):
+    """render() with the engine's settings as they are (configure_engine first, then any of its own)."""
     r = scene.render
     r.image_settings.file_format = 'OPEN_EXR'
     r.image_settings.color_depth = '32'
