@@ -195,6 +195,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         options = render_options(settings, region)
         options.passes = pass_bits(enabled_passes(depsgraph.view_layer))
         options.pass_alpha_threshold = depsgraph.view_layer.pass_alpha_threshold
+        options.film_transparent = scene.render.film_transparent
         session = core.native.Session(scene_core, options)
         x0, y0, x1, y1 = region
         # Blender's render result is the border only, with or without crop (it pastes

@@ -69,6 +69,17 @@ class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
         layout.prop(settings, "rr_depth")
 
 
+class TESSERA_PT_film(TesseraPanel, bpy.types.Panel):
+    bl_label = "Film"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        # Blender's own setting, as Cycles' Film panel shows it.
+        layout.prop(context.scene.render, "film_transparent", text="Transparent")
+
+
 class TESSERA_PT_performance(TesseraPanel, bpy.types.Panel):
     bl_label = "Performance"
     bl_options = {'DEFAULT_CLOSED'}
@@ -194,7 +205,7 @@ class TESSERA_LIGHT_PT_beam_shape(TesseraLightPanel, bpy.types.Panel):
             col.prop(light, "spread", text="Spread")
 
 
-classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_performance, TESSERA_PT_passes_data,
+classes = (TESSERA_PT_sampling, TESSERA_PT_light_paths, TESSERA_PT_film, TESSERA_PT_performance, TESSERA_PT_passes_data,
            TESSERA_LIGHT_PT_light, TESSERA_LIGHT_PT_beam_shape)
 
 # Blender's own panels that apply to any engine which renders the usual data.

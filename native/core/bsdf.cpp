@@ -64,7 +64,6 @@ vec3 ensure_valid_reflection(const vec3& ng, const vec3& wo, const vec3& n) {
 // Cycles' CLOSURE_WEIGHT_CUTOFF: closures lighter than this are left out.
 constexpr float kClosureCutoff = 1e-5f;
 
-float average(const vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
 vec3 saturate(const vec3& v) { return glm::clamp(v, vec3(0.0f), vec3(1.0f)); }
 
 // Average single-scattering Fresnel 2 int_0^1 F(mu, eta) mu dmu, Kulla and

@@ -42,9 +42,10 @@ float PixelFilter::warp(float u) const {
 
 namespace tessera {
 
-void Film::resize(int width, int height, bool estimate_error, bool camera_emission) {
+void Film::resize(int width, int height, bool estimate_error, bool camera_emission, bool transparent_background) {
   const size_t n = size_t(width) * size_t(height);
   width_ = width;
+  transparency_.assign(transparent_background ? n : 0, 0.0);
   le_stats_.assign(camera_emission ? n : 0, CameraEmissionStats());
   split_.assign(camera_emission ? n : 0, 0);
   sum_.assign(n, vec3(0.0f));
@@ -101,6 +102,7 @@ void Film::restart(size_t i) {
   sum_sq_[i] = 0.0;
   max_index_[i] = 0;
   count_[i] = 0;
+  if (!transparency_.empty()) transparency_[i] = 0.0;
   if (!le_stats_.empty()) le_stats_[i] = CameraEmissionStats();
   if (slot_of_.empty() || slot_of_[i] < 0) return;
   const size_t slot = size_t(slot_of_[i]);

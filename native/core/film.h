@@ -52,8 +52,10 @@ class Film {
   static constexpr double kFollowShare = 0.25;  // followed while the pixels near bright samples carry this much
 
   // n = width * height pixels; replicates only with estimate_error; the
-  // camera emission statistics only with camera_emission.
-  void resize(int width, int height, bool estimate_error, bool camera_emission = false);
+  // camera emission statistics only with camera_emission; the alpha sums only
+  // with transparent_background (Film > Transparent).
+  void resize(int width, int height, bool estimate_error, bool camera_emission = false,
+              bool transparent_background = false);
   size_t size() const { return sum_.size(); }
 
   void add(size_t i, int sample, const vec3& L) {
@@ -80,6 +82,13 @@ class Film {
   bool active(size_t i) const { return active_[i] != 0; }
   void deactivate(size_t i) { active_[i] = 0; }
   vec3 mean(size_t i) const { return count_[i] > 0 ? sum_[i] / float(count_[i]) : vec3(0.0f); }
+  // Film > Transparent: a sample's weight where its camera ray saw the world
+  // (Li's transparency); the pixel's alpha is 1 minus their mean.
+  bool has_transparency() const { return !transparency_.empty(); }
+  void add_transparency(size_t i, float t) { transparency_[i] += t; }
+  float alpha(size_t i) const {
+    return transparency_.empty() || count_[i] == 0 ? 1.0f : 1.0f - float(transparency_[i] / count_[i]);
+  }
 
   // The replicate slot of pixel (x, y) of the film, or -1 if it has none:
   // the grid's pixels, and from each estimate on the pixels it chose to
@@ -168,6 +177,7 @@ class Film {
   std::vector<vec3> sum_, sum_a_;
   std::vector<double> sum_sq_;  // per pixel: sum over samples of |L|^2 (RGB)
   std::vector<int> count_;
+  std::vector<double> transparency_;  // per pixel: sum of its samples' transparency (empty: opaque film)
   std::vector<uint8_t> active_;
   std::vector<vec3> max_;  // per pixel: its brightest sample (largest RGB sum)
   std::vector<int> max_index_;  // per pixel: that sample's index

@@ -79,7 +79,7 @@ vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& op
   Hit hit;
   ++counters.rays;
   if (!scene.intersect(ray, hit))
-    return scene.background.emits() ? clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct) : vec3(0.0f);
+    return scene.background.emits() && !options.film_transparent ? clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct) : vec3(0.0f);
   const SurfaceInteraction si = scene.interaction(ray, hit);
   const Material& base = scene.materials[si.material];
   if (!base.is_emissive()) return vec3(0.0f);
@@ -88,8 +88,9 @@ vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& op
 }
 
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features, FirstHit* first, vec3* camera_le) {
+        const SceneFeatures& features, FirstHit* first, vec3* camera_le, float* transparency) {
   if (camera_le) *camera_le = vec3(0.0f);
+  if (transparency) *transparency = 0.0f;
   const LightSampler& lights = scene.light_sampler();
   vec3 L(0.0f), beta(1.0f);
   float prev_bsdf_pdf = 0.0f;
@@ -137,6 +138,12 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       float world_pdf = 0.0f;
       const vec3 le = emits ? scene.background.Le(ray.d, count_emission_fully ? nullptr : &world_pdf) : vec3(0.0f);
       if (first && !first->complete()) first->miss(le);
+      if (options.film_transparent && bounce == 0) {
+        // Film > Transparent: the camera sees no world here, the pixel's
+        // alpha takes the path's weight (Cycles' film_write_transparent).
+        if (transparency) *transparency = average(beta);
+        break;
+      }
       if (emits) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.world_pmf() * world_pdf);
         if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);

@@ -40,11 +40,15 @@ SceneFeatures scene_features(const Scene& scene);
 // camera_le: when not null, set to the part of the result that is the
 // emission the camera ray finds at its first surface (or the world's, if it
 // hits nothing), as camera_emission gives it: Li = that + the rest of the path.
+// transparency: when not null, set to the path's weight where the camera
+// saw the world through Film > Transparent (RenderOptions::film_transparent),
+// else 0: the sample's alpha is 1 minus it.
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
-        const SceneFeatures& features = SceneFeatures(), FirstHit* first = nullptr, vec3* camera_le = nullptr);
+        const SceneFeatures& features = SceneFeatures(), FirstHit* first = nullptr, vec3* camera_le = nullptr,
+        float* transparency = nullptr);
 
 // The emission a camera ray sees at its first surface, or the world's
-// radiance along it if it hits nothing, clamped as Li clamps direct light:
+// radiance along it if it hits nothing (none with Film > Transparent), clamped as Li clamps direct light:
 // the first term of Li alone, for a pixel's extra camera rays (emitter
 // antialiasing, render.cpp).
 vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters);

@@ -27,6 +27,7 @@ constexpr float gamma(int n) { return (n * kMachineEps) / (1 - n * kMachineEps);
 
 inline float max_component(const vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
 inline int max_dimension(const vec3& v) { return v.x > v.y ? (v.x > v.z ? 0 : 2) : (v.y > v.z ? 1 : 2); }
+inline float average(const vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
 inline float luminance(const vec3& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 inline bool is_finite(const vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }

@@ -54,6 +54,11 @@ struct RenderOptions {
   // 1/256 at 1080p, all of an image under 1024 pixels; as many again at most
   // for the brightest pixels off the grid (6-12% more samples at 120 px).
   bool estimate_error = true;
+  // Film > Transparent (Cycles' PATH_RAY_TRANSPARENT_BACKGROUND): the world
+  // a camera ray sees, directly or through transparent surfaces only, is
+  // left out of the image and lowers the pixel's alpha by the path's weight
+  // there (alpha = 1 - its mean); the world still lights the scene.
+  bool film_transparent = false;
   // Render passes besides Combined to write (passes.h, PassBits); 0: none,
   // and the integrator records nothing for them.
   uint32_t passes = 0;

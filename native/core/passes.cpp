@@ -3,7 +3,6 @@
 namespace tessera {
 
 namespace {
-float average(const vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
 // Cycles' denoising_passes.h: closures with squared roughness (alpha_x
 // alpha_y = roughness^4) above 0.075^2 count as diffuse-like.
 bool diffuse_like(float roughness) { return roughness * roughness > 0.075f; }

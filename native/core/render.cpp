@@ -26,7 +26,7 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   tiles_y_ = (height() + options_.tile_size - 1) / options_.tile_size;
   // The error target needs the estimate, whatever estimate_error says.
   film_.resize(width(), height(), options.estimate_error || options.error_target > 0.0f,
-               features_.camera_emission && options.max_camera_rays > 1);
+               features_.camera_emission && options.max_camera_rays > 1, options.film_transparent);
   display_.assign(size_t(width()) * height() * 4, 0.0f);
   data_passes_.configure(options.passes, film_.size(), scene.camera);
   for (int b = 0; b < kNumDataPasses; ++b)
@@ -58,14 +58,17 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
     vec3 le, rest;
     vec3* le_out = keep_le ? &le : nullptr;
     vec3* rest_out = keep_le ? &rest : nullptr;
+    float transparency = 0.0f;
+    float* transparency_out = film_.has_transparency() ? &transparency : nullptr;
     if (!data_passes_.mask()) {
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, le_out, rest_out));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, le_out, rest_out, transparency_out));
     } else {
       FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, le_out, rest_out));
+      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, le_out, rest_out, transparency_out));
       data_passes_.add(i, first);
     }
     if (keep_le) film_.add_camera_emission(i, le, rest);
+    if (transparency_out) film_.add_transparency(i, transparency);
   }
   if (keep_le) film_.add_path_rays(i, counters.rays - rays_before - uint64_t(extra_rays) * (sample_end - sample_begin));
   if (sample_end > sample_begin) film_.set_count(i, sample_end);
@@ -156,7 +159,7 @@ Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
 }
 
 vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters,
-                           FirstHit* first, vec3* camera_le, vec3* rest) const {
+                           FirstHit* first, vec3* camera_le, vec3* rest, float* transparency) const {
   // Emitter antialiasing: the pixel integral of the path's radiance is that
   // of the emission the camera ray sees first plus that of the rest, and the
   // first term, whose edges against bright lights carry a pixel's error,
@@ -175,7 +178,7 @@ vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays,
   const Ray ray = camera_ray(px, py, sampler);
   vec3 le0(0.0f);
   const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first,
-                    extra_rays > 0 || camera_le || rest ? &le0 : nullptr);
+                    extra_rays > 0 || camera_le || rest ? &le0 : nullptr, transparency);
   if (camera_le) *camera_le = le0;
   if (rest) *rest = L - le0;
   if (extra_rays == 0) return L;
@@ -271,9 +274,9 @@ void RenderSession::render() {
   // fewer display updates. Without a time limit the pass boundaries depend
   // only on the settings, never on threads or timing.
   int pass = 1;
-  if (!features_.emits && !data_passes_.mask()) {
+  if (!features_.emits && !data_passes_.mask() && !film_.has_transparency()) {
     // Nothing emits: the image is black, no path needs tracing (unless
-    // passes want what the camera sees).
+    // passes or a transparent film's alpha want what the camera sees).
     done = total;
     std::lock_guard<std::mutex> lock(display_mutex_);
     for (size_t i = 0; i < num_pixels; ++i) display_[4 * i + 3] = 1.0f;
@@ -406,7 +409,7 @@ void RenderSession::render() {
         display_[4 * i + 0] = m.x;
         display_[4 * i + 1] = m.y;
         display_[4 * i + 2] = m.z;
-        display_[4 * i + 3] = 1.0f;
+        display_[4 * i + 3] = film_.alpha(i);
       }
       for (int b = 0; b < kNumDataPasses; ++b) {
         if (pass_display_[b].empty()) continue;

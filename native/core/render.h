@@ -87,9 +87,10 @@ class RenderSession {
   // Sample s of pixel (px, py) with scrambling seed `seed`: the path's
   // radiance, its camera emission term averaged over its own and extra_rays
   // more camera rays (emitter antialiasing); camera_le and rest (each if not null) get the
-  // path's own camera emission (Li) and the rest of its radiance.
+  // path's own camera emission (Li) and the rest of its radiance;
+  // transparency (if not null) the path's (Li).
   vec3 sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters, FirstHit* first,
-              vec3* camera_le, vec3* rest) const;
+              vec3* camera_le, vec3* rest, float* transparency = nullptr) const;
   // Emitter antialiasing's choice, between passes: each pixel's extra camera
   // rays per sample from its camera emission statistics (render.cpp);
   // returns the pixels it started over, each with the sample count it had.

@@ -200,6 +200,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("time_limit", &RenderOptions::time_limit)
       .def_readwrite("error_target", &RenderOptions::error_target)
       .def_readwrite("estimate_error", &RenderOptions::estimate_error)
+      .def_readwrite("film_transparent", &RenderOptions::film_transparent)
       .def_readwrite("pass_alpha_threshold", &RenderOptions::pass_alpha_threshold)
       .def_readwrite("seed", &RenderOptions::seed)
       .def_readwrite("threads", &RenderOptions::threads)

@@ -136,7 +136,10 @@ def test_light_panel_shows_what_tessera_reads(light_type, shape, expected):
 def test_render_tab_has_tesseras_panels():
     scene = empty_scene()
     scene.render.engine = 'TESSERA'
-    labels = [label for _, label in shown_panels("render", TabContext(engine='TESSERA', scene=scene))]
-    for label in ("Sampling", "Light Paths", "Performance", "Color Management"):
+    panels = shown_panels("render", TabContext(engine='TESSERA', scene=scene))
+    labels = [label for _, label in panels]
+    for label in ("Sampling", "Light Paths", "Film", "Performance", "Color Management"):
         assert label in labels, labels
-    assert not [label for label in labels if label in ("Film", "Bloom", "Ambient Occlusion")], labels
+    assert not [label for label in labels if label in ("Bloom", "Ambient Occlusion")], labels
+    # The Film panel is Tessera's (Transparent), not EEVEE's (filter size, overscan).
+    assert [name for name, label in panels if label == "Film"] == ["TESSERA_PT_film"], panels

@@ -922,3 +922,70 @@ TEST(Textures, RepeatWrapsAcrossTheSeamsAndTiles) {
   const vec4 got = t.eval(uv);
   for (int c = 0; c < 4; ++c) EXPECT_NEAR(got[c], expect[c], 1e-4f);
 }
+
+// Film > Transparent (Cycles' PATH_RAY_TRANSPARENT_BACKGROUND): the world the
+// camera sees directly or through transparent surfaces is left out of the
+// image and lowers alpha by the path's weight there; the world still lights
+// what the camera sees. A Lambert square under a white sky, seen from above
+// filling the middle of the view, then the same square made 3/4 transparent.
+TEST(Film, TransparentFilmLeavesTheWorldOutAndSetsAlpha) {
+  const int size = 16;
+  auto build = [&](Scene& s, const Material& m) {
+    add_square(s, 0.0f, 0.5f, add_material(s, m));
+    s.background.set_color(vec3(1.0f));
+    look_down(s, 2.0f, 1.0f, size);
+    s.commit();
+  };
+  auto at = [&](const std::vector<float>& px, int x, int y, int c) { return px[4 * (size_t(y) * size + x) + c]; };
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  Scene s;
+  build(s, lambert);
+  RenderOptions opt;
+  opt.samples = 16;
+  const std::vector<float> opaque = render(s, opt);
+  opt.film_transparent = true;
+  const std::vector<float> clear = render(s, opt);
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      const bool world = x < 3 || x > 12 || y < 3 || y > 12;   // at least 1 px off the square (filter 1.5 px)
+      const bool square = x >= 5 && x <= 10 && y >= 5 && y <= 10;  // 1 px inside it
+      EXPECT_EQ(at(opaque, x, y, 3), 1.0f);
+      if (world) {
+        EXPECT_EQ(at(opaque, x, y, 0), 1.0f) << x << "," << y;
+        EXPECT_EQ(at(clear, x, y, 0), 0.0f) << x << "," << y;
+        EXPECT_EQ(at(clear, x, y, 3), 0.0f) << x << "," << y;
+      }
+      if (square) {  // the same paths: lit by the world, as without the option
+        EXPECT_EQ(at(clear, x, y, 3), 1.0f) << x << "," << y;
+        EXPECT_EQ(at(clear, x, y, 0), at(opaque, x, y, 0)) << x << "," << y;
+        EXPECT_NEAR(at(clear, x, y, 0), 0.5f, 1e-5f);
+      }
+    }
+  // 3/4 transparent: the camera sees the world through it in 3/4 of its
+  // paths, so the square's alpha is about 1/4 and its colour 1/4 of the Lambert's.
+  Scene t;
+  build(t, with_closures({closure(ClosureKind::Diffuse, 0.25f, vec3(0.5f), 0.0f), closure(ClosureKind::Transparent, 0.75f, vec3(1.0f))}));
+  opt.samples = 64;
+  const std::vector<float> half = render(t, opt);
+  double alpha = 0.0, red = 0.0;
+  for (int y = 5; y <= 10; ++y)
+    for (int x = 5; x <= 10; ++x) alpha += at(half, x, y, 3) / 36.0, red += at(half, x, y, 0) / 36.0;
+  std::printf("3/4 transparent square: alpha %.4f, red %.4f\n", alpha, red);
+  EXPECT_NEAR(alpha, 0.25, 0.02);
+  EXPECT_NEAR(red, 0.125, 0.01);
+}
+
+// Nothing emits, yet a transparent film still needs the camera's rays: alpha
+// is 0 where the camera sees the (black) world and 1 on the geometry.
+TEST(Film, TransparentFilmGivesAlphaEvenWhenNothingEmits) {
+  Scene s;
+  add_square(s, 0.0f, 0.5f, add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)})));
+  look_down(s, 2.0f, 1.0f, 16);
+  s.commit();
+  RenderOptions opt;
+  opt.samples = 4;
+  opt.film_transparent = true;
+  const std::vector<float> px = render(s, opt);
+  EXPECT_EQ(px[4 * (0 * 16 + 0) + 3], 0.0f);
+  EXPECT_EQ(px[4 * (8 * 16 + 8) + 3], 1.0f);
+}

@@ -25,6 +25,46 @@ class Report:
             self.warnings.append(message)
 
 
+# Object Properties > Visibility > Ray Visibility, as Cycles names the rays.
+_RAY_VISIBILITY = (("visible_camera", "Camera"), ("visible_diffuse", "Diffuse"), ("visible_glossy", "Glossy"),
+                   ("visible_transmission", "Transmission"), ("visible_volume_scatter", "Volume Scatter"),
+                   ("visible_shadow", "Shadow"))
+
+
+def check_ray_visibility(obj, report):
+    """Warns about the object's visibility settings that Tessera does not
+    model (it renders every object as seen by every ray, casting shadows, and
+    lights as unseen by the camera, as Cycles' defaults have them)."""
+    if obj.type == 'LIGHT':
+        seen = [label for attr, label in _RAY_VISIBILITY[1:4] if not getattr(obj, attr, True)]
+        if seen:
+            report.warn(obj.name, f"Light '{obj.name}' has ray visibility off for {', '.join(seen)} (Object "
+                                  f"Properties > Visibility), which Tessera does not model: it lights every "
+                                  f"surface. Turn those rays back on to get Cycles' image.")
+        if getattr(obj, "visible_camera", False):
+            report.warn(obj.name, f"Light '{obj.name}' is visible to the camera (Object Properties > Visibility), "
+                                  f"which Tessera does not model: the camera does not see it. Turn Camera "
+                                  f"visibility off to get Cycles' image.")
+        return
+    off = [label for attr, label in _RAY_VISIBILITY if not getattr(obj, attr, True)]
+    if off:
+        report.warn(obj.name, f"Object '{obj.name}' has ray visibility off for {', '.join(off)} (Object Properties "
+                              f"> Visibility), which Tessera does not model: every ray sees it and it casts "
+                              f"shadows. Turn those rays back on, or hide the object, to get Cycles' image.")
+    for attr, label in (("is_holdout", "Holdout"), ("is_shadow_catcher", "Shadow Catcher")):
+        if getattr(obj, attr, False):
+            report.warn(obj.name, f"Object '{obj.name}' is a {label} (Object Properties > Visibility), which "
+                                  f"Tessera does not model: it renders as an ordinary object.")
+
+
+def check_film(bl_scene, report):
+    """Warns about Film settings that Tessera does not model."""
+    cycles_settings = getattr(bl_scene, "cycles", None)
+    if bl_scene.render.film_transparent and getattr(cycles_settings, "film_transparent_glass", False):
+        report.warn(bl_scene.name, "Film > Transparent Glass is not modelled: the world seen through glass stays "
+                                   "opaque. Turn it off to get Cycles' image.")
+
+
 def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_override=None):
     """Returns (core Scene, stats dict, Report). Raises ExportError.
     camera_override: the camera to render through instead of the scene's."""
@@ -48,6 +88,7 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
             return None, None, report
         obj = inst.object
         if obj.type == 'LIGHT':
+            check_ray_visibility(obj, report)
             lights.export_light(scene_core, obj, inst.matrix_world, report)
             continue
         if obj.type not in mesh.GEOMETRY_TYPES:
@@ -62,10 +103,12 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
         matrix = mesh.matrix_array(inst.matrix_world, obj.name, report)
         if matrix is None:
             continue
+        check_ray_visibility(obj, report)
         scene_core.add_instance(mesh_id, matrix, slot_materials)
         num_instances += 1
 
     world.export_world(scene_core, bl_scene.world, report)
+    check_film(bl_scene, report)
     export_seconds = time.perf_counter() - t0
     t1 = time.perf_counter()
     scene_core.commit()

@@ -47,9 +47,24 @@ def _environment(env_node, report, world_name):
     return px, rotation.astype(np.float32)
 
 
+def check_ray_visibility(world, report):
+    """Warns about World Properties > Ray Visibility that Tessera does not
+    model: the world is seen by every ray (Film > Transparent hides it from
+    the camera)."""
+    vis = getattr(world, "cycles_visibility", None)
+    off = [label for attr, label in (("camera", "Camera"), ("diffuse", "Diffuse"), ("glossy", "Glossy"),
+                                     ("transmission", "Transmission"), ("scatter", "Volume Scatter"))
+           if not getattr(vis, attr, True)]
+    if off:
+        hint = " (Render Properties > Film > Transparent hides the world from the camera)" if "Camera" in off else ""
+        report.warn(world.name, f"World '{world.name}' has ray visibility off for {', '.join(off)}, which Tessera "
+                                f"does not model: every ray sees it{hint}.")
+
+
 def export_world(scene_core, world, report):
     if world is None:
         return  # Blender renders a missing world as black
+    check_ray_visibility(world, report)
     # Blender 5.0 always uses a world's nodes (use_nodes is deprecated there).
     if world.node_tree is None or (bpy.app.version < (5, 0, 0) and not world.use_nodes):
         scene_core.set_world_color(list(world.color)[:3])
