@@ -78,7 +78,7 @@ SceneFeatures scene_features(const Scene& scene) {
 vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters) {
   Hit hit;
   ++counters.rays;
-  if (!scene.intersect(ray, hit))
+  if (!scene.intersect_camera(ray, hit))
     return scene.background.emits() && !options.film_transparent ? clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct) : vec3(0.0f);
   const SurfaceInteraction si = scene.interaction(ray, hit);
   const Material& base = scene.materials[si.material];
@@ -116,7 +116,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   for (int bounce = 0, vertex = 0;; ++vertex) {
     Hit hit;
     ++counters.rays;
-    const bool found = scene.intersect(ray, hit);
+    // Until the path scatters (bounce 0: the camera ray, on through
+    // transparent surfaces), instances hidden from the camera are passed.
+    const bool found = bounce == 0 ? scene.intersect_camera(ray, hit) : scene.intersect(ray, hit);
     const float t_end = found ? hit.t : ray.tmax;
 
     // Area lights and point/spot lights with a radius are seen by scattered

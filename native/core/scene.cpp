@@ -8,8 +8,10 @@
 
 namespace tessera {
 
-uint32_t Scene::add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials) {
+uint32_t Scene::add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials,
+                             bool camera_visible) {
   Instance inst;
+  inst.camera_visible = camera_visible;
   inst.mesh = mesh;
   inst.to_world = to_world;
   inst.to_local = glm::inverse(to_world);
@@ -105,7 +107,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
     const bool invertible = std::isfinite(glm::determinant(inst.to_local)) && is_finite(vec3(inst.to_local[0])) &&
                             is_finite(vec3(inst.to_local[1])) && is_finite(vec3(inst.to_local[2])) &&
                             is_finite(vec3(inst.to_local[3]));
-    if (uses[inst.mesh] == 1 && invertible && !meshes[inst.mesh].prim_ids.empty()) {
+    if (uses[inst.mesh] == 1 && invertible && inst.camera_visible && !meshes[inst.mesh].prim_ids.empty()) {
       single.push_back(i);
       first.push_back(first.back() + meshes[inst.mesh].prim_ids.size());
     } else {
@@ -164,6 +166,8 @@ void Scene::commit() {
   rebase_on_camera();
   tlas_items_.clear();
   merge_single_use_instances(tlas_items_);
+  camera_hidden_ = false;
+  for (uint32_t id : tlas_items_) camera_hidden_ = camera_hidden_ || (id != kMergedItem && !instances[id].camera_visible);
   // Trees for the meshes the TLAS walks (add_mesh prepares meshes without
   // one: most are merged, and were built twice).
   std::vector<uint32_t> unbuilt;
@@ -218,17 +222,20 @@ bool Scene::trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, H
   return true;
 }
 
-template <bool kAnyHit>
+template <bool kAnyHit, bool kCamera>
 bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
   if (tlas_.nodes.empty()) return false;
+  auto hidden = [&](uint32_t id) { return kCamera && id != kMergedItem && !instances[id].camera_visible; };
   // One item (the merged triangles of a scene without instancing, or a lone
   // instance): its BLAS's root test is the TLAS's, skip the walk.
-  if (tlas_items_.size() == 1) return trace_item<kAnyHit>(tlas_items_[0], o, d, tmax, hit);
+  if (tlas_items_.size() == 1) return !hidden(tlas_items_[0]) && trace_item<kAnyHit>(tlas_items_[0], o, d, tmax, hit);
   TraversalRay ray(o, d, tmax);
   return traverse<kAnyHit>(tlas_.nodes.data(), ray, [&](uint32_t first, uint32_t count, TraversalRay& r) {
     bool any = false;
     for (uint32_t k = first; k < first + count; ++k) {
-      if (trace_item<kAnyHit>(tlas_items_[tlas_.prim_order[k]], r.o, r.d, r.tmax, hit)) {
+      const uint32_t id = tlas_items_[tlas_.prim_order[k]];
+      if (hidden(id)) continue;
+      if (trace_item<kAnyHit>(id, r.o, r.d, r.tmax, hit)) {
         if (kAnyHit) return true;
         any = true;
       }
@@ -242,6 +249,12 @@ bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
 bool Scene::intersect(const Ray& ray, Hit& hit) const {
   if (!is_finite(ray.o) || !is_finite(ray.d)) return false;
   return trace<false>(ray.o, ray.d, ray.tmax, &hit);
+}
+
+bool Scene::intersect_camera(const Ray& ray, Hit& hit) const {
+  if (!camera_hidden_) return intersect(ray, hit);
+  if (!is_finite(ray.o) || !is_finite(ray.d)) return false;
+  return trace<false, true>(ray.o, ray.d, ray.tmax, &hit);
 }
 
 bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {

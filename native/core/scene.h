@@ -23,6 +23,10 @@ struct Instance {
   uint32_t material_offset = 0;  // into Scene::instance_materials
   uint32_t num_slots = 0;
   bool identity = true;
+  // Object Properties > Visibility > Camera: off, camera rays pass it (it
+  // still casts shadows, is seen by scattered rays and, emissive, lights the
+  // scene); such instances keep their own BLAS (Scene::commit).
+  bool camera_visible = true;
 };
 
 struct Hit {
@@ -76,7 +80,8 @@ class Scene {
 
   Scene() { materials.push_back(Material{}); }
 
-  uint32_t add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials);
+  uint32_t add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials,
+                        bool camera_visible = true);
   // Builds the TLAS and the light sampler; call once after adding everything
   // (camera included: see render_origin).
   void commit();
@@ -93,6 +98,9 @@ class Scene {
   vec3 render_origin{0.0f};
 
   bool intersect(const Ray& ray, Hit& hit) const;
+  // intersect() for camera rays (and their continuation through transparent
+  // surfaces): instances hidden from the camera are passed.
+  bool intersect_camera(const Ray& ray, Hit& hit) const;
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
   SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
   // The material parameters at a hit, textures applied.
@@ -128,7 +136,8 @@ class Scene {
                         const Instance& inst) const;
   float texture_value(const TextureRef& ref, vec2 uv) const;
   void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
-  template <bool kAnyHit>
+  // kCamera: skips the instances hidden from the camera.
+  template <bool kAnyHit, bool kCamera = false>
   bool trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const;
   template <bool kAnyHit>
   bool trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, Hit* hit) const;
@@ -149,6 +158,7 @@ class Scene {
   Mesh merged_;
   std::vector<MergedOwner> merged_owner_;
   size_t num_merged_instances_ = 0;
+  bool camera_hidden_ = false;  // some TLAS item is hidden from the camera
   LightSampler light_sampler_;
 };
 

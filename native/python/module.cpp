@@ -267,13 +267,14 @@ PYBIND11_MODULE(_core, m) {
       .def("mesh_skipped_triangles", [](const Scene& s, size_t i) { return s.meshes.at(i).num_skipped_triangles; })
       .def(
           "add_instance",
-          [](Scene& s, uint32_t mesh, const Array<float>& matrix, std::vector<uint32_t> slot_materials) {
+          [](Scene& s, uint32_t mesh, const Array<float>& matrix, std::vector<uint32_t> slot_materials,
+             bool camera_visible) {
             if (mesh >= s.meshes.size()) throw std::out_of_range("add_instance: no mesh with index " + std::to_string(mesh));
             for (uint32_t mat : slot_materials)
               if (mat >= s.materials.size()) throw std::out_of_range("add_instance: no material with index " + std::to_string(mat));
-            return s.add_instance(mesh, to_render_space(s, to_mat4(matrix, "matrix")), slot_materials);
+            return s.add_instance(mesh, to_render_space(s, to_mat4(matrix, "matrix")), slot_materials, camera_visible);
           },
-          py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"))
+          py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"), py::arg("camera_visible") = true)
       .def(
           "add_texture",
           [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension,

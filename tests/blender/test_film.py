@@ -1,6 +1,7 @@
-"""The film against Cycles: Film > Transparent (the world left out of what the
-camera sees, alpha from the paths), and the warnings for the visibility and
-film settings Tessera does not model."""
+"""What the camera sees, against Cycles: Film > Transparent (the world left
+out, alpha from the paths), objects hidden from the camera (Object Properties
+> Visibility > Camera), and the warnings for the visibility and film settings
+Tessera does not model."""
 
 import math
 
@@ -89,3 +90,32 @@ def test_unmodelled_visibility_and_film_settings_are_named():
     assert any(scene.world.name in w and "Camera" in w for w in warnings), text
     assert any("Transparent Glass" in w for w in warnings), text
     assert any(light.name in w and "camera" in w for w in warnings), text
+
+
+def test_objects_hidden_from_the_camera_match_cycles():
+    """A softbox (an emissive plane) and a cube hidden from the camera over a
+    floor: the camera sees the floor they light and shade, not them. Before
+    Tessera modelled Camera visibility it showed both (the softbox as a white
+    rectangle)."""
+    scene = empty_scene()
+    add_plane(12.0, material=principled("Floor", (0.8, 0.8, 0.8), Specular=0.0, Roughness=1.0))
+    softbox = add_plane(1.5, location=(0.8, 0.3, 1.2), rotation=(math.radians(180), 0, 0),
+                        material=principled("Softbox", (0.0, 0.0, 0.0), Specular=0.0, **{
+                            ("Emission Color" if bpy.app.version >= (4, 0, 0) else "Emission"): (1.0, 1.0, 1.0, 1.0),
+                            "Emission Strength": 8.0}))
+    softbox.visible_camera = False
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(-0.9, -0.2, 0.4))
+    cube = bpy.context.object
+    cube.data.materials.append(principled("Cube", (0.8, 0.2, 0.1), Specular=0.0, Roughness=1.0))
+    cube.visible_camera = False
+    add_camera(scene, location=(0, 0, 5), lens=35)
+    set_world(scene, (0.05, 0.05, 0.05), 1.0)
+    ours = render(scene, 'TESSERA', samples=128, bounces=4)
+    ref = render(scene, 'CYCLES', samples=128, bounces=4)
+    c = compare(ours, ref)
+    print({k: np.round(v, 4) for k, v in c.items()})
+    assert np.all(np.isfinite(ours))
+    assert np.all(c["mean_rel_diff"] < 0.02), f"mean {c['mean_test']} vs Cycles {c['mean_ref']}"
+    assert c["rel_rmse"] < 0.05, c
+    # The softbox lights the floor but is not seen: nothing near its radiance.
+    assert ours[..., :3].max() < 4.0, ours[..., :3].max()

@@ -989,3 +989,55 @@ TEST(Film, TransparentFilmGivesAlphaEvenWhenNothingEmits) {
   EXPECT_EQ(px[4 * (0 * 16 + 0) + 3], 0.0f);
   EXPECT_EQ(px[4 * (8 * 16 + 8) + 3], 1.0f);
 }
+
+// Object Properties > Visibility > Camera off: camera rays pass the object,
+// everything else sees it. A lamp (emissive quad, 0.6 wide) hung over a
+// Lambert floor and seen from above: shown, the middle of the image is its
+// radiance (4); hidden, it is the floor it lights (about 1). A blocker hidden from the camera still casts its shadow under a
+// sun: the floor below it stays dark. Before Tessera modelled the setting,
+// hidden objects were rendered as shown.
+TEST(Visibility, ObjectHiddenFromTheCameraStillLightsAndCastsShadows) {
+  auto middle = [](const std::vector<float>& px, int size) {
+    double m = 0.0;
+    for (int y = size / 2 - 1; y < size / 2 + 1; ++y)  // 2 x 2 pixels: their filters stay on the lamp
+      for (int x = size / 2 - 1; x < size / 2 + 1; ++x) m += px[4 * (size_t(y) * size + x)] / 4.0;
+    return m;
+  };
+  const int size = 16;
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  double lamp_middle[2], blocker_middle[2];
+  for (int hidden = 0; hidden < 2; ++hidden) {
+    Scene s;
+    add_square(s, 0.0f, 50.0f, add_material(s, lambert));
+    Material lamp = lambert;
+    lamp.emission_front = lamp.emission_back = vec3(4.0f);
+    add_square(s, 0.3f, 0.3f, add_material(s, lamp));
+    s.instances.back().camera_visible = !hidden;
+    look_down(s, 2.0f, 1.0f, size);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 64;
+    lamp_middle[hidden] = middle(render(s, opt), size);
+
+    Scene b;
+    add_square(b, 0.0f, 50.0f, add_material(b, lambert));
+    add_square(b, 0.5f, 0.4f, add_material(b, lambert));
+    b.instances.back().camera_visible = !hidden;
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.direction = vec3(0.0f, 0.0f, -1.0f);
+    sun.radiance = vec3(1.0f);
+    b.lights.push_back(sun);
+    look_down(b, 2.0f, 1.0f, size);
+    b.commit();
+    opt.max_bounces = 0;
+    blocker_middle[hidden] = middle(render(b, opt), size);
+  }
+  std::printf("lamp: shown %.4f, hidden %.4f; blocker under a sun: shown %.4f, hidden %.4f\n", lamp_middle[0],
+              lamp_middle[1], blocker_middle[0], blocker_middle[1]);
+  EXPECT_NEAR(lamp_middle[0], 4.0, 1e-4);
+  EXPECT_GT(lamp_middle[1], 0.5);  // the lit floor, not black: the hidden lamp still emits
+  EXPECT_LT(lamp_middle[1], 2.0);  // and not the lamp
+  EXPECT_NEAR(blocker_middle[0], 0.5 / kPi, 1e-4);  // the blocker's top, lit by the sun
+  EXPECT_EQ(blocker_middle[1], 0.0);                // the floor in its shadow
+}

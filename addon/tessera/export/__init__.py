@@ -33,8 +33,10 @@ _RAY_VISIBILITY = (("visible_camera", "Camera"), ("visible_diffuse", "Diffuse"),
 
 def check_ray_visibility(obj, report):
     """Warns about the object's visibility settings that Tessera does not
-    model (it renders every object as seen by every ray, casting shadows, and
-    lights as unseen by the camera, as Cycles' defaults have them)."""
+    model. Of an object's ray visibility it models Camera (the instance is
+    passed by camera rays); every other ray sees it and it casts shadows.
+    Lights are unseen by the camera and light every surface, as Cycles'
+    defaults have them."""
     if obj.type == 'LIGHT':
         seen = [label for attr, label in _RAY_VISIBILITY[1:4] if not getattr(obj, attr, True)]
         if seen:
@@ -46,7 +48,7 @@ def check_ray_visibility(obj, report):
                                   f"which Tessera does not model: the camera does not see it. Turn Camera "
                                   f"visibility off to get Cycles' image.")
         return
-    off = [label for attr, label in _RAY_VISIBILITY if not getattr(obj, attr, True)]
+    off = [label for attr, label in _RAY_VISIBILITY[1:] if not getattr(obj, attr, True)]
     if off:
         report.warn(obj.name, f"Object '{obj.name}' has ray visibility off for {', '.join(off)} (Object Properties "
                               f"> Visibility), which Tessera does not model: every ray sees it and it casts "
@@ -104,7 +106,7 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
         if matrix is None:
             continue
         check_ray_visibility(obj, report)
-        scene_core.add_instance(mesh_id, matrix, slot_materials)
+        scene_core.add_instance(mesh_id, matrix, slot_materials, bool(getattr(obj, "visible_camera", True)))
         num_instances += 1
 
     world.export_world(scene_core, bl_scene.world, report)
