@@ -78,8 +78,10 @@ SceneFeatures scene_features(const Scene& scene) {
 vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters) {
   Hit hit;
   ++counters.rays;
-  if (!scene.intersect_camera(ray, hit))
-    return scene.background.emits() && !options.film_transparent ? clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct) : vec3(0.0f);
+  if (!scene.intersect_camera(ray, hit)) {
+    if (!scene.background.emits() || options.film_transparent) return vec3(0.0f);
+    return clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct);
+  }
   const SurfaceInteraction si = scene.interaction(ray, hit);
   const Material& base = scene.materials[si.material];
   if (!base.is_emissive()) return vec3(0.0f);

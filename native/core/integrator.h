@@ -48,9 +48,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         float* transparency = nullptr);
 
 // The emission a camera ray sees at its first surface, or the world's
-// radiance along it if it hits nothing (none with Film > Transparent), clamped as Li clamps direct light:
-// the first term of Li alone, for a pixel's extra camera rays (emitter
-// antialiasing, render.cpp).
+// radiance along it if it hits nothing (none with Film > Transparent),
+// clamped as Li clamps direct light: the first term of Li alone, for a
+// pixel's extra camera rays (emitter antialiasing, render.cpp).
 vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters);
 
 }  // namespace tessera

@@ -29,6 +29,7 @@ class Report:
 _RAY_VISIBILITY = (("visible_camera", "Camera"), ("visible_diffuse", "Diffuse"), ("visible_glossy", "Glossy"),
                    ("visible_transmission", "Transmission"), ("visible_volume_scatter", "Volume Scatter"),
                    ("visible_shadow", "Shadow"))
+_SCATTERED_RAYS = _RAY_VISIBILITY[1:4]  # what a light's visibility can turn off: Diffuse, Glossy, Transmission
 
 
 def check_ray_visibility(obj, report):
@@ -38,7 +39,7 @@ def check_ray_visibility(obj, report):
     Lights are unseen by the camera and light every surface, as Cycles'
     defaults have them."""
     if obj.type == 'LIGHT':
-        seen = [label for attr, label in _RAY_VISIBILITY[1:4] if not getattr(obj, attr, True)]
+        seen = [label for attr, label in _SCATTERED_RAYS if not getattr(obj, attr, True)]
         if seen:
             report.warn(obj.name, f"Light '{obj.name}' has ray visibility off for {', '.join(seen)} (Object "
                                   f"Properties > Visibility), which Tessera does not model: it lights every "
@@ -48,7 +49,7 @@ def check_ray_visibility(obj, report):
                                   f"which Tessera does not model: the camera does not see it. Turn Camera "
                                   f"visibility off to get Cycles' image.")
         return
-    off = [label for attr, label in _RAY_VISIBILITY[1:] if not getattr(obj, attr, True)]
+    off = [label for attr, label in _RAY_VISIBILITY if attr != "visible_camera" and not getattr(obj, attr, True)]
     if off:
         report.warn(obj.name, f"Object '{obj.name}' has ray visibility off for {', '.join(off)} (Object Properties "
                               f"> Visibility), which Tessera does not model: every ray sees it and it casts "
