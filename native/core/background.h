@@ -5,6 +5,7 @@
 #pragma once
 #include <vector>
 #include "sampling.h"
+#include "visibility.h"
 
 namespace tessera {
 
@@ -27,6 +28,11 @@ class Background {
   bool sample(vec2 u, vec3* wi, float* pdf, vec3* le = nullptr) const;
   float pdf(const vec3& wi) const;
   float average_luminance() const;
+  // World Properties > Ray Visibility (visibility.h): the ray kinds that see
+  // the world when they escape, and that it lights.
+  void set_visibility(uint8_t v) { visibility_ = v & (kRayCamera | kScatteredRays); }
+  bool seen_by(RayKind kind) const { return visibility_ & kind; }
+  uint8_t visibility() const { return visibility_; }
 
  private:
   vec2 direction_to_uv(const vec3& dir) const;
@@ -34,6 +40,7 @@ class Background {
   vec3 lookup(vec2 uv) const;
   float pdf_uv(vec2 uv) const;
 
+  uint8_t visibility_ = kRayCamera | kScatteredRays;
   vec3 color_{0.0f};
   bool has_image_ = false;
   std::vector<vec3> pixels_;

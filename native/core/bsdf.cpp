@@ -529,6 +529,10 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
       l.is_delta = l.delta();
       l.is_reflect = l.reflects();
       l.is_transmit = l.transmits();
+      l.kinds = l.type == Lobe::kBurley || l.type == Lobe::kOrenNayar ? kRayDiffuse
+                : l.type == Lobe::kGlass                             ? kRayGlossy | kRayTransmission
+                : l.transmits()                                      ? kRayTransmission
+                                                                     : kRayGlossy;
       if (l.type != Lobe::kBurley && l.type != Lobe::kOrenNayar && !l.is_delta) l.lambda_o = l.ggx.lambda(wo_);
       if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true;
     }
@@ -627,7 +631,10 @@ vec3 BSDF::eval_lobe(const Lobe& l, const vec3& wi, float* pdf) const {
   return vec3(0.0f);
 }
 
-vec3 BSDF::eval(const vec3& wi_world, float* pdf) const {
+// kExcluding: lobes all of whose kinds are in `excluded` are left out. Not
+// inlined into the wrappers below (the render loop calls them).
+template <bool kExcluding>
+__attribute__((noinline)) vec3 BSDF::eval_lobes(const vec3& wi_world, float* pdf, uint8_t excluded) const {
   const vec3 wi = frame_.to_local(wi_world);
   const bool reflect_side = same_side(wi_world);
   vec3 sum(0.0f);
@@ -636,12 +643,19 @@ vec3 BSDF::eval(const vec3& wi_world, float* pdf) const {
     const Lobe& l = lobes_[i];
     // The geometric side decides reflection vs transmission (no light leaks).
     if (l.prob == 0.0f || l.is_delta || !(reflect_side ? l.is_reflect : l.is_transmit)) continue;
+    if (kExcluding && (l.kinds & excluded) == l.kinds) continue;
     float lobe_pdf;
     sum += eval_lobe(l, wi, &lobe_pdf);
     p += l.prob * lobe_pdf;
   }
   *pdf = p;
   return sum;
+}
+
+vec3 BSDF::eval(const vec3& wi_world, float* pdf) const { return eval_lobes<false>(wi_world, pdf, 0); }
+
+vec3 BSDF::eval(const vec3& wi_world, float* pdf, uint8_t excluded) const {
+  return eval_lobes<true>(wi_world, pdf, excluded);
 }
 
 bool BSDF::sample_f(float u_lobe, vec2 u, BSDFSample& s) const {

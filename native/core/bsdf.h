@@ -31,6 +31,7 @@
 #include "material.h"
 #include "microfacet.h"
 #include "sampling.h"
+#include "visibility.h"
 
 namespace tessera {
 
@@ -58,6 +59,13 @@ class BSDF {
   // sample_f draws wi (next-event estimation needs both: one pass over the
   // lobes, one half vector per lobe). f and pdf alone are the same pass.
   vec3 eval(const vec3& wi_world, float* pdf) const;
+  // eval() for light sampling of a light that rays of the kinds in
+  // `excluded` (visibility.h, not 0) do not see: those kinds' lobes add neither f
+  // nor pdf (Cycles' _surface_shader_exclude). Diffuse lobes are of the
+  // diffuse kind, glossy reflection of the glossy kind, refraction of the
+  // transmission kind, and a glass lobe (Cycles 4.x) of both of the last two:
+  // it is left out only when both are.
+  vec3 eval(const vec3& wi_world, float* pdf, uint8_t excluded) const;
   vec3 f(const vec3& wi_world) const {
     float p;
     return eval(wi_world, &p);
@@ -123,6 +131,7 @@ class BSDF {
     float energy_scale;   // Multiscatter GGX: 1 / E(mu) (else 1)
     float lambda_o;       // smooth GGX lobes: Smith's Lambda(wo), shared by every eval
     bool is_delta, is_reflect, is_transmit;  // cached by the constructor for eval()
+    uint8_t kinds;  // the ray kinds it scatters into (visibility.h), cached with them
     bool delta() const {
       return type == kTransparent || (type != kBurley && type != kOrenNayar && ggx.alpha <= kSmoothAlpha);
     }
@@ -144,6 +153,8 @@ class BSDF {
   void glass_fresnel(const Lobe& l, float cos_i, vec3& R, vec3& T) const;
   vec3 albedo_estimate(const Lobe& l) const;
   vec3 eval_lobe(const Lobe& l, const vec3& wi, float* pdf) const;
+  template <bool kExcluding>
+  vec3 eval_lobes(const vec3& wi_world, float* pdf, uint8_t excluded) const;
   bool same_side(const vec3& wi_world) const { return glm::dot(wi_world, ng_) > 0.0f; }
 
   Frame frame_;

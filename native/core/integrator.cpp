@@ -26,7 +26,7 @@ vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax,
     Ray r{o, d, tmax};
     Hit hit;
     ++counters.rays;
-    if (!scene.intersect(r, hit)) return tr;
+    if (!scene.intersect(r, hit, kRayShadow)) return tr;
     if (hits >= max_hits) return vec3(0.0f);
     const SurfaceInteraction si = scene.interaction(r, hit);
     const Material& base = scene.materials[si.material];
@@ -49,11 +49,11 @@ vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax,
 // mis_ray_t the same way). If another such light lies nearer on that line,
 // this segment's density is kept.
 float light_pdf_from_vertex(const LightSampler& lights, const Ray& ray, float mis_t, int light, float t_light,
-                            float pdf, const vec3& vertex_p, const vec3& vertex_n) {
+                            float pdf, const vec3& vertex_p, const vec3& vertex_n, RayKind kind) {
   float t, p;
   vec3 le;
   if (lights.intersect_lights(ray.o - ray.d * mis_t, ray.d, (mis_t + t_light) * (1.0f + 1e-4f), &t, &le, &p, vertex_p,
-                              vertex_n) == light)
+                              vertex_n, kind) == light)
     return p;
   return pdf;
 }
@@ -67,7 +67,7 @@ SceneFeatures scene_features(const Scene& scene) {
   SceneFeatures f;
   f.hittable_emitters = area || lights.has_sun_disks() || !lights.triangles().empty() || scene.background.emits();
   f.emits = f.hittable_emitters || !lights.lights().empty();
-  f.camera_emission = scene.background.emits();
+  f.camera_emission = (scene.background.emits() && scene.background.seen_by(kRayCamera)) || lights.camera_sees_lights();
   for (const Material& m : scene.materials) {
     f.transparent = f.transparent || m.may_be_transparent();
     f.camera_emission = f.camera_emission || m.is_emissive();
@@ -78,15 +78,26 @@ SceneFeatures scene_features(const Scene& scene) {
 vec3 camera_emission(const Scene& scene, const Ray& ray, const RenderOptions& options, PathCounters& counters) {
   Hit hit;
   ++counters.rays;
-  if (!scene.intersect_camera(ray, hit)) {
-    if (!scene.background.emits() || options.film_transparent) return vec3(0.0f);
-    return clamped(scene.background.Le(ray.d, nullptr), options.clamp_direct);
+  const bool found = scene.intersect(ray, hit, kRayCamera);
+  vec3 le(0.0f);
+  // Area and sphere lights made visible to the camera, in front of the hit.
+  if (scene.light_sampler().camera_sees_lights()) {
+    float t, pdf;
+    scene.light_sampler().intersect_lights(ray.o, ray.d, found ? hit.t : ray.tmax, &t, &le, &pdf, ray.o, vec3(0.0f),
+                                           kRayCamera);
+  }
+  if (!found) {
+    if (scene.background.emits() && scene.background.seen_by(kRayCamera) && !options.film_transparent)
+      le += scene.background.Le(ray.d, nullptr);
+    return clamped(le, options.clamp_direct);
   }
   const SurfaceInteraction si = scene.interaction(ray, hit);
   const Material& base = scene.materials[si.material];
-  if (!base.is_emissive()) return vec3(0.0f);
-  MaterialScratch textured;
-  return clamped(scene.material_at(si, textured).emission(si.back_face), options.clamp_direct);
+  if (base.is_emissive()) {
+    MaterialScratch textured;
+    le += scene.material_at(si, textured).emission(si.back_face);
+  }
+  return clamped(le, options.clamp_direct);
 }
 
 vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& options, PathCounters& counters,
@@ -114,31 +125,36 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   // Clamping as in Cycles: contributions of bounce 0 (what the camera sees
   // emit, light sampled at the first hit) are direct, the rest indirect.
   auto add = [&](int bounce, vec3 c) { L += clamped(c, bounce == 0 ? options.clamp_direct : options.clamp_indirect); };
+  // The kind of the ray being traced (visibility.h): the camera's until the
+  // path scatters (on through transparent surfaces), then that of the lobe
+  // it scattered by.
+  RayKind kind = kRayCamera;
 
   for (int bounce = 0, vertex = 0;; ++vertex) {
     Hit hit;
     ++counters.rays;
-    // Until the path scatters (bounce 0: the camera ray, on through
-    // transparent surfaces), instances hidden from the camera are passed.
-    const bool found = bounce == 0 ? scene.intersect_camera(ray, hit) : scene.intersect(ray, hit);
+    // Instances hidden from rays of this kind are passed.
+    const bool found = scene.intersect(ray, hit, kind);
     const float t_end = found ? hit.t : ray.tmax;
 
     // Area lights and point/spot lights with a radius are seen by scattered
-    // rays, not by the camera (as in Cycles), and do not block the ray.
-    if (bounce > 0) {
+    // rays and, when made visible to it, by the camera (as in Cycles), and do
+    // not block the ray.
+    if (bounce > 0 || lights.camera_sees_lights()) {
       float t_light, light_pdf;
       vec3 le;
-      int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf, prev_p, prev_n);
+      int light = lights.intersect_lights(ray.o, ray.d, t_end, &t_light, &le, &light_pdf, prev_p, prev_n, kind);
       if (light >= 0) {
         if (mis_t > 0.0f && !count_emission_fully)
-          light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf, prev_p, prev_n);
+          light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf, prev_p, prev_n, kind);
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
+        if (camera_le && vertex == 0) *camera_le += clamped(le, options.clamp_direct);
         add(bounce, beta * le * w);
       }
     }
 
     if (!found) {
-      const bool emits = scene.background.emits();
+      const bool emits = scene.background.emits() && scene.background.seen_by(kind);
       float world_pdf = 0.0f;
       const vec3 le = emits ? scene.background.Le(ray.d, count_emission_fully ? nullptr : &world_pdf) : vec3(0.0f);
       if (first && !first->complete()) first->miss(le);
@@ -150,12 +166,12 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       }
       if (emits) {
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, lights.world_pmf() * world_pdf);
-        if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);
+        if (camera_le && vertex == 0) *camera_le += clamped(le, options.clamp_direct);
         add(bounce, beta * le * w);
       }
       // Sun disks, seen by scattered rays only (as area lights are).
       if (bounce > 0 && lights.has_sun_disks())
-        add(bounce, beta * lights.sun_disks_seen(ray.d, count_emission_fully ? 0.0f : prev_bsdf_pdf));
+        add(bounce, beta * lights.sun_disks_seen(ray.d, count_emission_fully ? 0.0f : prev_bsdf_pdf, kind));
       break;
     }
 
@@ -164,7 +180,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     const Material& material = scene.material_at(si, textured);
     const vec3 le = material.emission(si.back_face);
     if (first && !first->complete()) first->surface(ray, hit.t, si, material, le);
-    if (camera_le && vertex == 0) *camera_le = clamped(le, options.clamp_direct);
+    if (camera_le && vertex == 0) *camera_le += clamped(le, options.clamp_direct);
     if (max_component(le) > 0.0f) {
       float w = 1.0f;
       if (!count_emission_fully) {
@@ -208,16 +224,20 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     LightSample ls;
     if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
       float bsdf_pdf;
-      vec3 f = bsdf.eval(ls.wi, &bsdf_pdf) * bsdf.abs_cos(ls.wi);
+      // Lobes of ray kinds the light is hidden from do not see it.
+      const uint8_t excluded = ~ls.visibility & kScatteredRays;
+      vec3 f = (excluded ? bsdf.eval(ls.wi, &bsdf_pdf, excluded) : bsdf.eval(ls.wi, &bsdf_pdf)) * bsdf.abs_cos(ls.wi);
       if (max_component(f) > 0.0f) {
         vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
         // Stop just short of the sampled light point, relative to its distance,
         // measured from the offset origin (far from the world origin the offset
         // is not negligible next to the distance).
         float tmax = std::isinf(ls.dist) ? kInf : (ls.dist - glm::dot(origin - si.p, ls.wi)) * (1.0f - 1e-4f);
-        if (!features.transparent) {
-          ++counters.rays;
-          if (!scene.occluded(origin, ls.wi, tmax)) {
+        // A light with Cast Shadow off is not shadowed.
+        const bool shadowed = ls.visibility & kRayShadow;
+        if (!features.transparent || !shadowed) {
+          counters.rays += shadowed;
+          if (!shadowed || !scene.occluded(origin, ls.wi, tmax)) {
             float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
             add(bounce, beta * f * ls.li * (w / ls.pdf));
           }
@@ -259,6 +279,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     count_emission_fully = bs.delta;
     mis_t = 0.0f;
     ++kind_bounces[bs.kind];
+    kind = bs.kind == BSDFSample::kDiffuse ? kRayDiffuse : bs.kind == BSDFSample::kGlossy ? kRayGlossy : kRayTransmission;
     // The next vertex would only add emission and stop: with nothing a ray
     // can hit that emits, skip it (same image, one ray fewer per path).
     if (!features.hittable_emitters &&

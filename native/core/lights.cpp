@@ -301,8 +301,10 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   // the light samples it took went to it instead of the lights (a 64 px
   // test scene under a constant sky: 1.18-1.32x Cycles' variance per sample,
   // 0.81-0.89x after).
-  world_ = (world && world->emits() && world->has_image()) ? world : nullptr;
+  // A world hidden from every scattered ray lights nothing.
+  world_ = (world && world->emits() && world->has_image() && (world->visibility() & kScatteredRays)) ? world : nullptr;
   hittable_lights_.clear();
+  camera_sees_lights_ = false;
   // Bounds of every bounded emitter for the BVH, with the same power
   // estimates the first step weighs the BVH, the world and suns with.
   std::vector<LightBounds> bounds(lights_.size() + triangles_.size());
@@ -312,8 +314,10 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
   for (uint32_t i = 0; i < lights_.size(); ++i) {
     const Light& l = lights_[i];
     const float power = light_power(l, scene_radius);
-    if (l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f))
+    if (l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f)) {
       hittable_lights_.push_back(i);
+      camera_sees_lights_ = camera_sees_lights_ || (l.visibility & kRayCamera);
+    }
     if (l.type == LightType::Sun) {
       top_entries_.push_back(i);
       top_weights.push_back(power);
@@ -411,6 +415,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     ls.dist = kInf;
     ls.pdf = pdf * pmf;
     ls.is_delta = false;
+    ls.visibility = world_->visibility() | kRayShadow;
     return ls.pdf > 0.0f;
   }
   if (entry >= nl) {
@@ -451,10 +456,12 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
     ls.pdf = omega > 0.0f ? pmf / omega : pmf * dist2 / (std::abs(cos_l) * t.area);
     ls.is_delta = false;
+    ls.visibility = t.visibility | kRayShadow;  // the object's own Shadow flag is about blocking
     return max_component(ls.li) > 0.0f;
   }
   const Light& l = lights_[entry];
   ls.is_delta = false;
+  ls.visibility = l.visibility;
   switch (l.type) {
     case LightType::Point:
     case LightType::Spot: {
@@ -579,10 +586,11 @@ float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float
   return selection_pmf(light, p, n) * dist * dist / (cos_l * r.area);
 }
 
-vec3 LightSampler::sun_disks_seen(const vec3& d, float bsdf_pdf) const {
+vec3 LightSampler::sun_disks_seen(const vec3& d, float bsdf_pdf, RayKind kind) const {
   vec3 sum(0.0f);
   for (const auto& [index, pmf] : sun_disks_) {
     const Light& l = lights_[index];
+    if (!(l.visibility & kind)) continue;
     // d meets the plane one unit towards the sun at d / c; inside the disk
     // of radius r = tan(half angle) when tan^2 theta = (1 - c^2) / c^2 <= r^2.
     const float c = -glm::dot(d, l.direction);
@@ -611,10 +619,11 @@ float LightSampler::pdf_sphere(uint32_t light, const vec3& p, const vec3& n, flo
 }
 
 int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, float* t_hit, vec3* le, float* pdf,
-                                   const vec3& p, const vec3& n) const {
+                                   const vec3& p, const vec3& n, RayKind kind) const {
   int best = -1;
   for (uint32_t i : hittable_lights_) {
     const Light& l = lights_[i];
+    if (!(l.visibility & kind)) continue;
     if (l.type == LightType::Area) {
       float denom = glm::dot(d, l.direction);
       if (denom >= 0.0f) continue;  // back side or parallel: area lights are one-sided

@@ -11,6 +11,7 @@
 #include "light_bvh.h"
 #include "material.h"
 #include "sampling.h"
+#include "visibility.h"
 
 namespace tessera {
 
@@ -19,6 +20,11 @@ enum class LightType : uint32_t { Point, Spot, Sun, Area, Triangle, Background }
 // One Blender light, already converted to radiometric quantities.
 struct Light {
   LightType type = LightType::Point;
+  // Object Properties > Visibility > Ray Visibility of the light (visibility.h):
+  // the kinds of rays that see it and that it lights (Camera: area and
+  // sphere lights are seen by camera rays; Shadow: it casts shadows). Next
+  // to the type: intersect_lights reads both for every light.
+  uint8_t visibility = kLightDefaultVisibility;
   vec3 position{0.0f};
   vec3 direction{0.0f, 0.0f, -1.0f};  // emission axis (spot, sun, area): the light's -Z
   vec3 axis_u{1, 0, 0}, axis_v{0, 1, 0};  // area: half-extent vectors
@@ -71,6 +77,7 @@ struct EmissiveTriangle {
   // spherical_sampling_area), next to the corners that sampling reads.
   vec3 centre{0.0f};
   float area_from2 = 0.0f;
+  uint8_t visibility = kVisibleToAll;  // its instance's (visibility.h)
 };
 
 struct LightSample {
@@ -79,6 +86,10 @@ struct LightSample {
   vec3 li;        // incident radiance (or intensity / dist^2 for delta lights)
   float pdf;      // solid-angle pdf including selection; for delta lights, selection pmf only
   bool is_delta;  // no MIS: BSDF sampling cannot hit it (delta lights: points, spots, suns without a radius)
+  // The ray kinds that see the light (visibility.h): light sampling leaves
+  // out the BSDF lobes of the others, and traces no shadow ray without the
+  // shadow kind.
+  uint8_t visibility = kVisibleToAll;
 };
 
 class Background;
@@ -113,20 +124,22 @@ class LightSampler {
   // this x the world's own density), for a caller that has that density.
   float world_pmf() const { return world_ ? top_world_pmf_ : 0.0f; }
 
-  // Nearest area light, or point/spot light with a radius, hit by the ray
-  // before tmax (BSDF-sampled rays see them, so they take part in MIS);
-  // returns the light index or -1, with the hit distance, radiance and the
-  // light's solid-angle pdf for MIS as sample() from (p, n) would have
-  // produced it (p: the scattering vertex the ray left).
+  // Nearest area light, or point/spot light with a radius, seen by rays of
+  // kind `kind` and hit by the ray before tmax (BSDF-sampled rays see them,
+  // so they take part in MIS); returns the light index or -1, with the hit
+  // distance, radiance and the light's solid-angle pdf for MIS as sample()
+  // from (p, n) would have produced it (p: the scattering vertex the ray left).
   int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf, const vec3& p,
-                       const vec3& n) const;
+                       const vec3& n, RayKind kind) const;
+  // Some light that rays can hit is visible to the camera.
+  bool camera_sees_lights() const { return camera_sees_lights_; }
   // Suns with an angle are disks at infinity that escaping rays see, as
-  // Cycles' integrate_distant_lights: the radiance of those whose disk the
-  // direction d lies in, each weighted by the power heuristic against its
-  // light-sampling density, d having been drawn with density bsdf_pdf (0:
-  // weight 1, after a delta bounce).
+  // Cycles' integrate_distant_lights: the radiance of those seen by rays of
+  // kind `kind` whose disk the direction d lies in, each weighted by the
+  // power heuristic against its light-sampling density, d having been drawn
+  // with density bsdf_pdf (0: weight 1, after a delta bounce).
   bool has_sun_disks() const { return !sun_disks_.empty(); }
-  vec3 sun_disks_seen(const vec3& d, float bsdf_pdf) const;
+  vec3 sun_disks_seen(const vec3& d, float bsdf_pdf, RayKind kind) const;
 
  private:
   // Probability that sample() from (p, n) picks light entry `entry` (lights,
@@ -138,6 +151,7 @@ class LightSampler {
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
   std::vector<uint32_t> triangle_order_; // key rank -> triangle index
   std::vector<uint32_t> hittable_lights_;  // area lights, and point/spot lights with a radius
+  bool camera_sees_lights_ = false;
   std::vector<std::pair<uint32_t, float>> sun_disks_;  // suns with an angle: light index, selection pmf
   const Background* world_ = nullptr;
   // First step: the BVH (kTopBVH), the world (kTopWorld) or a sun (its light index).

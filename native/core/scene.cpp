@@ -9,9 +9,9 @@
 namespace tessera {
 
 uint32_t Scene::add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials,
-                             bool camera_visible) {
+                             uint8_t visibility) {
   Instance inst;
-  inst.camera_visible = camera_visible;
+  inst.visibility = visibility & kVisibleToAll;
   inst.mesh = mesh;
   inst.to_world = to_world;
   inst.to_local = glm::inverse(to_world);
@@ -41,6 +41,7 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
     bool any = false;
     for (uint32_t s = 0; s < inst.num_slots; ++s) any |= materials[material_of(inst, s)].is_emissive();
     if (!any && !materials[0].is_emissive()) continue;
+    if (!(inst.visibility & kScatteredRays)) continue;  // no ray it lights would see it (Cycles: not a light)
     const Mesh& mesh = meshes[inst.mesh];
     for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
       const Material& m = materials[material_of(inst, mesh.slot(mesh.prim_ids[k]))];
@@ -67,6 +68,7 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
       const float stretch = std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
       const float local_error = 2.0f * gamma(8) * local * stretch;
       out.push_back({p0, e1, e2, c / len, 0.5f * len, m.emission_front, m.emission_back, i, k, local_error});
+      out.back().visibility = inst.visibility;
     }
   }
   return out;
@@ -107,7 +109,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
     const bool invertible = std::isfinite(glm::determinant(inst.to_local)) && is_finite(vec3(inst.to_local[0])) &&
                             is_finite(vec3(inst.to_local[1])) && is_finite(vec3(inst.to_local[2])) &&
                             is_finite(vec3(inst.to_local[3]));
-    if (uses[inst.mesh] == 1 && invertible && inst.camera_visible && !meshes[inst.mesh].prim_ids.empty()) {
+    if (uses[inst.mesh] == 1 && invertible && inst.visibility == kVisibleToAll && !meshes[inst.mesh].prim_ids.empty()) {
       single.push_back(i);
       first.push_back(first.back() + meshes[inst.mesh].prim_ids.size());
     } else {
@@ -166,8 +168,9 @@ void Scene::commit() {
   rebase_on_camera();
   tlas_items_.clear();
   merge_single_use_instances(tlas_items_);
-  camera_hidden_ = false;
-  for (uint32_t id : tlas_items_) camera_hidden_ = camera_hidden_ || (id != kMergedItem && !instances[id].camera_visible);
+  hidden_from_ = 0;
+  for (uint32_t id : tlas_items_)
+    if (id != kMergedItem) hidden_from_ |= uint8_t(~instances[id].visibility & kVisibleToAll);
   // Trees for the meshes the TLAS walks (add_mesh prepares meshes without
   // one: most are merged, and were built twice).
   std::vector<uint32_t> unbuilt;
@@ -222,10 +225,10 @@ bool Scene::trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, H
   return true;
 }
 
-template <bool kAnyHit, bool kCamera>
-bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const {
+template <bool kAnyHit, bool kMasked>
+bool Scene::trace(const vec3& o, const vec3& d, float tmax, Hit* hit, uint8_t kind) const {
   if (tlas_.nodes.empty()) return false;
-  auto hidden = [&](uint32_t id) { return kCamera && id != kMergedItem && !instances[id].camera_visible; };
+  auto hidden = [&](uint32_t id) { return kMasked && id != kMergedItem && !(instances[id].visibility & kind); };
   // One item (the merged triangles of a scene without instancing, or a lone
   // instance): its BLAS's root test is the TLAS's, skip the walk.
   if (tlas_items_.size() == 1) return !hidden(tlas_items_[0]) && trace_item<kAnyHit>(tlas_items_[0], o, d, tmax, hit);
@@ -251,14 +254,14 @@ bool Scene::intersect(const Ray& ray, Hit& hit) const {
   return trace<false>(ray.o, ray.d, ray.tmax, &hit);
 }
 
-bool Scene::intersect_camera(const Ray& ray, Hit& hit) const {
-  if (!camera_hidden_) return intersect(ray, hit);
+bool Scene::intersect_visible(const Ray& ray, Hit& hit, RayKind kind) const {
   if (!is_finite(ray.o) || !is_finite(ray.d)) return false;
-  return trace<false, true>(ray.o, ray.d, ray.tmax, &hit);
+  return trace<false, true>(ray.o, ray.d, ray.tmax, &hit, kind);
 }
 
 bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {
   if (!is_finite(o) || !is_finite(d)) return false;
+  if (hidden_from_ & kRayShadow) return trace<true, true>(o, d, tmax, nullptr, kRayShadow);
   return trace<true>(o, d, tmax, nullptr);
 }
 

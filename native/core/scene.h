@@ -23,10 +23,12 @@ struct Instance {
   uint32_t material_offset = 0;  // into Scene::instance_materials
   uint32_t num_slots = 0;
   bool identity = true;
-  // Object Properties > Visibility > Camera: off, camera rays pass it (it
-  // still casts shadows, is seen by scattered rays and, emissive, lights the
-  // scene); such instances keep their own BLAS (Scene::commit).
-  bool camera_visible = true;
+  // Object Properties > Visibility > Ray Visibility (visibility.h): the ray
+  // kinds that see the instance; the others pass it. An instance hidden
+  // from any kind keeps its own BLAS (Scene::commit); hidden from every
+  // scattered kind, its emission lights nothing (Cycles'
+  // object_usable_as_light).
+  uint8_t visibility = kVisibleToAll;
 };
 
 struct Hit {
@@ -81,7 +83,7 @@ class Scene {
   Scene() { materials.push_back(Material{}); }
 
   uint32_t add_instance(uint32_t mesh, const mat4& to_world, const std::vector<uint32_t>& slot_materials,
-                        bool camera_visible = true);
+                        uint8_t visibility = kVisibleToAll);
   // Builds the TLAS and the light sampler; call once after adding everything
   // (camera included: see render_origin).
   void commit();
@@ -97,10 +99,13 @@ class Scene {
   static constexpr float kRebaseDistance = 1024.0f;
   vec3 render_origin{0.0f};
 
+  // Every instance, whatever its visibility (tests, tools).
   bool intersect(const Ray& ray, Hit& hit) const;
-  // intersect() for camera rays (and their continuation through transparent
-  // surfaces): instances hidden from the camera are passed.
-  bool intersect_camera(const Ray& ray, Hit& hit) const;
+  // A ray of one kind (visibility.h): instances hidden from it are passed.
+  bool intersect(const Ray& ray, Hit& hit, RayKind kind) const {
+    return hidden_from_ & kind ? intersect_visible(ray, hit, kind) : intersect(ray, hit);
+  }
+  // Shadow rays: instances with Shadow visibility off are passed.
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
   SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
   // The material parameters at a hit, textures applied.
@@ -136,9 +141,10 @@ class Scene {
                         const Instance& inst) const;
   float texture_value(const TextureRef& ref, vec2 uv) const;
   void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
-  // kCamera: skips the instances hidden from the camera.
-  template <bool kAnyHit, bool kCamera = false>
-  bool trace(const vec3& o, const vec3& d, float tmax, Hit* hit) const;
+  bool intersect_visible(const Ray& ray, Hit& hit, RayKind kind) const;
+  // kMasked: skips the instances hidden from rays of kind `kind`.
+  template <bool kAnyHit, bool kMasked = false>
+  bool trace(const vec3& o, const vec3& d, float tmax, Hit* hit, uint8_t kind = 0) const;
   template <bool kAnyHit>
   bool trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, Hit* hit) const;
   // The TLAS's primitives: an instance index, or kMergedItem for merged_.
@@ -158,7 +164,7 @@ class Scene {
   Mesh merged_;
   std::vector<MergedOwner> merged_owner_;
   size_t num_merged_instances_ = 0;
-  bool camera_hidden_ = false;  // some TLAS item is hidden from the camera
+  uint8_t hidden_from_ = 0;  // the ray kinds some TLAS item is hidden from
   LightSampler light_sampler_;
 };
 

@@ -183,6 +183,12 @@ PYBIND11_MODULE(_core, m) {
     for (uint32_t bit = 1; bit & kPassAll; bit <<= 1) passes[pass_name(bit)] = bit;
     m.attr("PASSES") = passes;
   }
+  // Ray kinds for the visibility masks (visibility.h).
+  m.attr("RAY_CAMERA") = uint32_t(kRayCamera);
+  m.attr("RAY_DIFFUSE") = uint32_t(kRayDiffuse);
+  m.attr("RAY_GLOSSY") = uint32_t(kRayGlossy);
+  m.attr("RAY_TRANSMISSION") = uint32_t(kRayTransmission);
+  m.attr("RAY_SHADOW") = uint32_t(kRayShadow);
 
   py::class_<RenderOptions>(m, "RenderOptions")
       .def(py::init<>())
@@ -268,13 +274,13 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "add_instance",
           [](Scene& s, uint32_t mesh, const Array<float>& matrix, std::vector<uint32_t> slot_materials,
-             bool camera_visible) {
+             uint32_t visibility) {
             if (mesh >= s.meshes.size()) throw std::out_of_range("add_instance: no mesh with index " + std::to_string(mesh));
             for (uint32_t mat : slot_materials)
               if (mat >= s.materials.size()) throw std::out_of_range("add_instance: no material with index " + std::to_string(mat));
-            return s.add_instance(mesh, to_render_space(s, to_mat4(matrix, "matrix")), slot_materials, camera_visible);
+            return s.add_instance(mesh, to_render_space(s, to_mat4(matrix, "matrix")), slot_materials, uint8_t(visibility & kVisibleToAll));
           },
-          py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"), py::arg("camera_visible") = true)
+          py::arg("mesh"), py::arg("matrix"), py::arg("slot_materials"), py::arg("visibility") = uint32_t(kVisibleToAll))
       .def(
           "add_texture",
           [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension,
@@ -388,8 +394,9 @@ PYBIND11_MODULE(_core, m) {
           [](Scene& s, const std::string& type, std::vector<float> position, std::vector<float> direction,
              std::vector<float> axis_u, std::vector<float> axis_v, float radius, float spot_cos, float spot_smooth,
              bool ellipse, std::vector<float> radiance, bool spot_cosine, bool sphere,
-             std::vector<float> spot_to_local, float spread_tan, float spread_norm) {
+             std::vector<float> spot_to_local, float spread_tan, float spread_norm, uint32_t visibility) {
             Light l;
+            l.visibility = uint8_t(visibility & kVisibleToAll);
             if (type == "POINT") l.type = LightType::Point;
             else if (type == "SPOT") l.type = LightType::Spot;
             else if (type == "SUN") l.type = LightType::Sun;
@@ -426,8 +433,13 @@ PYBIND11_MODULE(_core, m) {
           py::arg("radius") = 0.0f, py::arg("spot_cos") = -1.0f, py::arg("spot_smooth") = 0.0f,
           py::arg("ellipse") = false, py::arg("radiance") = std::vector<float>{1, 1, 1},
           py::arg("spot_cosine") = true, py::arg("sphere") = false, py::arg("spot_to_local") = std::vector<float>{},
-          py::arg("spread_tan") = kInf, py::arg("spread_norm") = 0.0f)
+          py::arg("spread_tan") = kInf, py::arg("spread_norm") = 0.0f,
+          py::arg("visibility") = uint32_t(kLightDefaultVisibility))
       .def("set_world_color", [](Scene& s, std::vector<float> c) { s.background.set_color(to_vec3(c, "color")); })
+      .def(
+          "set_world_visibility", [](Scene& s, uint32_t visibility) { s.background.set_visibility(uint8_t(visibility)); },
+          py::arg("visibility"),
+          "World Properties > Ray Visibility: the ray kinds (RAY_CAMERA | RAY_DIFFUSE | ...) that see the world.")
       .def(
           "set_world_image",
           [](Scene& s, const Array<float>& pixels, const Array<float>& rotation, std::vector<float> strength) {

@@ -128,18 +128,6 @@ def test_portal_area_light_only_guides_the_world():
     assert c["rel_rmse"] < 0.05, c
 
 
-def test_light_without_shadows_is_named():
-    """Cast Shadow off (Cycles skips the light's shadow rays) is not modelled:
-    Tessera says so in a warning instead of rendering the shadows silently."""
-    from tessera import engine
-    scene = floor_under_light('POINT', energy=100.0, shadow_soft_size=0.2)
-    light = next(o for o in scene.objects if o.type == 'LIGHT')
-    light.data.use_shadow = False
-    render(scene, 'TESSERA', samples=4, bounces=0)
-    warnings = " ".join(engine.last_render_stats.get("warnings", []))
-    assert light.name in warnings and "Cast Shadow" in warnings, warnings
-
-
 # Area light Spread (Cycles' soft box: radiance times max((tan h - tan a) /
 # (tan h - h), 0) at angle a to the light's normal, h the half spread), on
 # the floor under the tilted light of floor_under_light. Before Tessera

@@ -133,7 +133,7 @@ double pdf_integral(const LightSampler& lights, int which, const vec3& p, const 
       const vec3 d = sample_uniform_sphere(vec2((i + 0.5f) / k, (j + 0.5f) / k));
       float t, pdf;
       vec3 le;
-      if (lights.intersect_lights(p, d, kInf, &t, &le, &pdf, p, n) == which) sum += pdf;
+      if (lights.intersect_lights(p, d, kInf, &t, &le, &pdf, p, n, kRayDiffuse) == which) sum += pdf;
     }
   return sum * 4.0 * kPi / (double(k) * k);
 }
@@ -198,7 +198,7 @@ TEST(Lights, PointAndSpotSampleAndHitAgree) {
     ASSERT_FALSE(ls.is_delta);
     float t, pdf;
     vec3 le;
-    const int hit = lights.intersect_lights(p, ls.wi, kInf, &t, &le, &pdf, p, n);
+    const int hit = lights.intersect_lights(p, ls.wi, kInf, &t, &le, &pdf, p, n, kRayDiffuse);
     ASSERT_GE(hit, 0) << p.x << "," << p.y << "," << p.z;
     if (t < 0.999f * ls.dist) continue;  // another light lies in front of the sampled one
     ++checked[hit];
@@ -339,7 +339,7 @@ TEST(Lights, AreaSpreadSampledAndHitAgreeWithBruteForce) {
             if (i % 64 == 0) {  // the hit sees the same radiance and density
               float t, pdf;
               vec3 le;
-              ASSERT_EQ(lights.intersect_lights(p, ls.wi, kInf, &t, &le, &pdf, p, n), 0);
+              ASSERT_EQ(lights.intersect_lights(p, ls.wi, kInf, &t, &le, &pdf, p, n, kRayDiffuse), 0);
               EXPECT_NEAR(pdf / ls.pdf, 1.0f, 2e-3f);
               EXPECT_NEAR(le.x / ls.li.x, 1.0f, 2e-3f);
               ++pdf_checked;
@@ -348,7 +348,7 @@ TEST(Lights, AreaSpreadSampledAndHitAgreeWithBruteForce) {
           const vec3 wi = sample_cosine_hemisphere(vec2(uni(rng), uni(rng)));  // around +z
           float t, pdf;
           vec3 le;
-          if (lights.intersect_lights(p, wi, kInf, &t, &le, &pdf, p, n) == 0) {
+          if (lights.intersect_lights(p, wi, kInf, &t, &le, &pdf, p, n, kRayDiffuse) == 0) {
             e_hit += double(le.x) * kPi;
             e2_hit += double(le.x) * kPi * double(le.x) * kPi;
           }

@@ -1012,7 +1012,7 @@ TEST(Visibility, ObjectHiddenFromTheCameraStillLightsAndCastsShadows) {
     Material lamp = lambert;
     lamp.emission_front = lamp.emission_back = vec3(4.0f);
     add_square(s, 0.3f, 0.3f, add_material(s, lamp));
-    s.instances.back().camera_visible = !hidden;
+    if (hidden) s.instances.back().visibility &= ~kRayCamera;
     look_down(s, 2.0f, 1.0f, size);
     s.commit();
     RenderOptions opt;
@@ -1022,7 +1022,7 @@ TEST(Visibility, ObjectHiddenFromTheCameraStillLightsAndCastsShadows) {
     Scene b;
     add_square(b, 0.0f, 50.0f, add_material(b, lambert));
     add_square(b, 0.5f, 0.4f, add_material(b, lambert));
-    b.instances.back().camera_visible = !hidden;
+    if (hidden) b.instances.back().visibility &= ~kRayCamera;
     Light sun;
     sun.type = LightType::Sun;
     sun.direction = vec3(0.0f, 0.0f, -1.0f);
@@ -1040,4 +1040,178 @@ TEST(Visibility, ObjectHiddenFromTheCameraStillLightsAndCastsShadows) {
   EXPECT_LT(lamp_middle[1], 2.0);  // and not the lamp
   EXPECT_NEAR(blocker_middle[0], 0.5 / kPi, 1e-4);  // the blocker's top, lit by the sun
   EXPECT_EQ(blocker_middle[1], 0.0);                // the floor in its shadow
+}
+
+// The other ray kinds (visibility.h), each against the same scene without the
+// setting, in closed form where there is one. Before Tessera modelled them,
+// every setting below changed nothing.
+namespace {
+// The mean of the image's middle 4 x 4 pixels (red).
+double middle4(const std::vector<float>& px, int size) {
+  double m = 0.0;
+  for (int y = size / 2 - 2; y < size / 2 + 2; ++y)
+    for (int x = size / 2 - 2; x < size / 2 + 2; ++x) m += px[4 * (size_t(y) * size + x)] / 16.0;
+  return m;
+}
+Light overhead_sun() {
+  Light sun;
+  sun.type = LightType::Sun;
+  sun.direction = vec3(0.0f, 0.0f, -1.0f);
+  sun.radiance = vec3(1.0f);
+  return sun;
+}
+}  // namespace
+
+// A blocker with Shadow off, and a sun with Cast Shadow off: the floor under
+// the blocker is lit as if it were not there, while the camera (looking
+// along the sun from below the blocker's height) still sees the floor. A
+// Lambert floor under a unit sun at normal incidence reads albedo / pi.
+TEST(Visibility, ShadowOffOnTheBlockerOrTheLightLeavesTheFloorLit) {
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  double floor[3];
+  for (int variant = 0; variant < 3; ++variant) {  // 0 shadowed, 1 blocker without Shadow, 2 sun without it
+    Scene s;
+    add_square(s, 0.0f, 50.0f, add_material(s, lambert));
+    add_square(s, 3.0f, 0.6f, add_material(s, lambert));  // above the camera: only shadows
+    if (variant == 1) s.instances.back().visibility &= ~kRayShadow;
+    Light sun = overhead_sun();
+    if (variant == 2) sun.visibility &= ~kRayShadow;
+    s.lights.push_back(sun);
+    look_down(s, 2.0f, 0.5f, 16);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 4;
+    opt.max_bounces = 0;
+    floor[variant] = middle4(render(s, opt), 16);
+  }
+  std::printf("floor under the blocker: shadowed %.5f, blocker without Shadow %.5f, sun without it %.5f\n",
+              floor[0], floor[1], floor[2]);
+  EXPECT_EQ(floor[0], 0.0);
+  EXPECT_NEAR(floor[1], 0.5 / kPi, 1e-5);
+  EXPECT_NEAR(floor[2], 0.5 / kPi, 1e-5);
+}
+
+// A point light hidden from diffuse rays lights a Lambert floor not at all,
+// and a glossy floor as before; hidden from glossy rays, the reverse. Light
+// sampling leaves out the hidden kind's lobes (Cycles' _surface_shader_exclude).
+TEST(Visibility, LightsHiddenFromARayKindLightOnlyTheOtherLobes) {
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  const Material glossy = with_closures({closure(ClosureKind::Glossy, 1, vec3(0.8f), 0.4f)});
+  auto floor = [&](const Material& m, uint8_t light_visibility) {
+    Scene s;
+    add_square(s, 0.0f, 50.0f, add_material(s, m));
+    Light point;
+    point.type = LightType::Point;
+    point.position = vec3(0.0f, 0.0f, 1.0f);
+    point.radiance = vec3(10.0f);
+    point.visibility = light_visibility;
+    s.lights.push_back(point);
+    look_down(s, 2.0f, 0.5f, 16);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 16;
+    opt.max_bounces = 0;
+    return middle4(render(s, opt), 16);
+  };
+  const uint8_t all = kLightDefaultVisibility;
+  const double diffuse_lit = floor(lambert, all), diffuse_unseen = floor(lambert, all & ~kRayDiffuse);
+  const double glossy_lit = floor(glossy, all), glossy_diffuse_off = floor(glossy, all & ~kRayDiffuse),
+               glossy_unseen = floor(glossy, all & ~kRayGlossy);
+  std::printf("Lambert floor: %.4f, light without Diffuse %.4f; glossy floor: %.4f, without Diffuse %.4f, "
+              "without Glossy %.4f\n", diffuse_lit, diffuse_unseen, glossy_lit, glossy_diffuse_off, glossy_unseen);
+  EXPECT_GT(diffuse_lit, 0.5);
+  EXPECT_EQ(diffuse_unseen, 0.0);
+  EXPECT_GT(glossy_lit, 0.1);
+  EXPECT_EQ(glossy_diffuse_off, glossy_lit);
+  EXPECT_EQ(glossy_unseen, 0.0);
+}
+
+// An emissive panel hidden from diffuse rays: the camera sees it, and a
+// Lambert floor beside it gets none of its light (neither light sampling nor
+// BSDF sampling finds it).
+TEST(Visibility, EmitterHiddenFromDiffuseRaysLightsNoDiffuseSurface) {
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  Material lamp = lambert;
+  lamp.emission_front = lamp.emission_back = vec3(4.0f);
+  auto render_lamp = [&](uint8_t lamp_visibility) {
+    Scene s;
+    add_square(s, 0.0f, 50.0f, add_material(s, lambert));
+    add_square(s, 0.5f, 0.45f, add_material(s, lamp));  // the middle 4 x 4 pixels (and filters) see only the lamp
+    s.instances.back().visibility = lamp_visibility;
+    look_down(s, 2.0f, 1.0f, 16);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 64;
+    opt.max_bounces = 1;
+    return render(s, opt);
+  };
+  const std::vector<float> shown = render_lamp(kVisibleToAll);
+  const std::vector<float> hidden = render_lamp(kVisibleToAll & ~kRayDiffuse);
+  std::printf("lamp %.4f / %.4f, floor beside it %.5f / %.5f (shown / hidden from diffuse rays)\n",
+              middle4(shown, 16), middle4(hidden, 16), shown[0], hidden[0]);
+  EXPECT_NEAR(middle4(hidden, 16), 4.0, 1e-4);
+  EXPECT_GT(shown[0], 0.001);
+  EXPECT_EQ(hidden[0], 0.0);
+}
+
+// A Lambert floor (albedo 0.5) under a white sky, seen from above with the
+// sky around it: the world hidden from the camera is black there and still
+// lights the floor; a panel over the floor hidden from diffuse rays (and the
+// camera) lets the floor under it see the whole sky (every sample exactly
+// 0.5, as with no panel), where a panel seen by them shades it.
+TEST(Visibility, WorldHiddenFromTheCameraAndPanelsHiddenFromDiffuseRays) {
+  const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
+  auto render_sky = [&](uint8_t world_visibility, uint8_t panel_visibility) {
+    Scene s;
+    add_square(s, 0.0f, 0.5f, add_material(s, lambert));
+    add_square(s, 0.3f, 0.3f, add_material(s, lambert));
+    s.instances.back().visibility = panel_visibility;
+    s.background.set_color(vec3(1.0f));
+    s.background.set_visibility(world_visibility);
+    look_down(s, 2.0f, 1.0f, 16);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 16;
+    opt.max_bounces = 1;
+    return render(s, opt);
+  };
+  const uint8_t panel_shading = kVisibleToAll & ~kRayCamera, panel_unseen = kRayShadow;
+  const std::vector<float> sky = render_sky(kRayCamera | kScatteredRays, panel_unseen);
+  const std::vector<float> no_sky = render_sky(kScatteredRays, panel_unseen);
+  const std::vector<float> shaded = render_sky(kRayCamera | kScatteredRays, panel_shading);
+  std::printf("corner: world seen %.4f, unseen %.4f; floor under the panel: unseen %.4f, hidden from the camera "
+              "only %.4f\n", sky[0], no_sky[0], middle4(no_sky, 16), middle4(shaded, 16));
+  EXPECT_EQ(sky[0], 1.0f);
+  EXPECT_EQ(no_sky[0], 0.0f);
+  EXPECT_NEAR(middle4(sky, 16), 0.5, 1e-6);
+  EXPECT_NEAR(middle4(no_sky, 16), 0.5, 1e-6);
+  EXPECT_LT(middle4(shaded, 16), 0.4);
+}
+
+// An area light made visible to the camera is seen, with its radiance, by
+// camera rays; by default (Blender's) it is not.
+TEST(Visibility, AreaLightVisibleToTheCameraIsSeen) {
+  auto middle_of = [](uint8_t visibility) {
+    Scene s;
+    add_square(s, 0.0f, 50.0f, add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)})));
+    Light area;
+    area.type = LightType::Area;
+    area.position = vec3(0.0f, 0.0f, 1.0f);
+    area.direction = vec3(0.0f, 0.0f, 1.0f);  // facing the camera above, away from the floor
+    area.axis_u = vec3(0.5f, 0.0f, 0.0f);
+    area.axis_v = vec3(0.0f, 0.5f, 0.0f);
+    area.area = 1.0f;
+    area.radiance = vec3(3.0f);
+    area.visibility = visibility;
+    s.lights.push_back(area);
+    look_down(s, 2.0f, 0.25f, 16);
+    s.commit();
+    RenderOptions opt;
+    opt.samples = 4;
+    return middle4(render(s, opt), 16);
+  };
+  const double unseen = middle_of(kLightDefaultVisibility), seen = middle_of(kLightDefaultVisibility | kRayCamera);
+  std::printf("area light: default %.4f, visible to the camera %.4f\n", unseen, seen);
+  EXPECT_EQ(unseen, 0.0);
+  EXPECT_NEAR(seen, 3.0, 1e-5);
 }

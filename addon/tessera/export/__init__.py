@@ -25,39 +25,35 @@ class Report:
             self.warnings.append(message)
 
 
-# Object Properties > Visibility > Ray Visibility, as Cycles names the rays.
-_RAY_VISIBILITY = (("visible_camera", "Camera"), ("visible_diffuse", "Diffuse"), ("visible_glossy", "Glossy"),
-                   ("visible_transmission", "Transmission"), ("visible_volume_scatter", "Volume Scatter"),
-                   ("visible_shadow", "Shadow"))
-_SCATTERED_RAYS = _RAY_VISIBILITY[1:4]  # what a light's visibility can turn off: Diffuse, Glossy, Transmission
+# Object Properties > Visibility > Ray Visibility, as Cycles names the rays,
+# and the core's ray kinds (visibility.h). Volume Scatter has no ray in
+# Tessera (no volumes), so it changes nothing.
+_RAY_KINDS = (("visible_camera", "RAY_CAMERA"), ("visible_diffuse", "RAY_DIFFUSE"),
+              ("visible_glossy", "RAY_GLOSSY"), ("visible_transmission", "RAY_TRANSMISSION"),
+              ("visible_shadow", "RAY_SHADOW"))
 
 
-def check_ray_visibility(obj, report):
-    """Warns about the object's visibility settings that Tessera does not
-    model. Of an object's ray visibility it models Camera (the instance is
-    passed by camera rays); every other ray sees it and it casts shadows.
-    Lights are unseen by the camera and light every surface, as Cycles'
-    defaults have them."""
+def ray_visibility(obj, report):
+    """The object's ray visibility as the core's mask: the ray kinds that see
+    it (for a light: that it lights, Camera that camera rays see it, and
+    Shadow that it casts shadows, from the light's Cast Shadow). Warns about
+    the visibility settings Tessera does not model."""
+    mask = 0
+    for attr, kind in _RAY_KINDS:
+        if attr == "visible_shadow" and obj.type == 'LIGHT':
+            continue
+        default = attr != "visible_camera" or obj.type != 'LIGHT'  # lights are unseen by the camera by default
+        if getattr(obj, attr, default):
+            mask |= getattr(core.native, kind)
     if obj.type == 'LIGHT':
-        seen = [label for attr, label in _SCATTERED_RAYS if not getattr(obj, attr, True)]
-        if seen:
-            report.warn(obj.name, f"Light '{obj.name}' has ray visibility off for {', '.join(seen)} (Object "
-                                  f"Properties > Visibility), which Tessera does not model: it lights every "
-                                  f"surface. Turn those rays back on to get Cycles' image.")
-        if getattr(obj, "visible_camera", False):
-            report.warn(obj.name, f"Light '{obj.name}' is visible to the camera (Object Properties > Visibility), "
-                                  f"which Tessera does not model: the camera does not see it. Turn Camera "
-                                  f"visibility off to get Cycles' image.")
-        return
-    off = [label for attr, label in _RAY_VISIBILITY if attr != "visible_camera" and not getattr(obj, attr, True)]
-    if off:
-        report.warn(obj.name, f"Object '{obj.name}' has ray visibility off for {', '.join(off)} (Object Properties "
-                              f"> Visibility), which Tessera does not model: every ray sees it and it casts "
-                              f"shadows. Turn those rays back on, or hide the object, to get Cycles' image.")
+        if lights.casts_shadow(obj.data):
+            mask |= core.native.RAY_SHADOW
+        return mask
     for attr, label in (("is_holdout", "Holdout"), ("is_shadow_catcher", "Shadow Catcher")):
         if getattr(obj, attr, False):
             report.warn(obj.name, f"Object '{obj.name}' is a {label} (Object Properties > Visibility), which "
                                   f"Tessera does not model: it renders as an ordinary object.")
+    return mask
 
 
 def check_film(bl_scene, report):
@@ -91,8 +87,7 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
             return None, None, report
         obj = inst.object
         if obj.type == 'LIGHT':
-            check_ray_visibility(obj, report)
-            lights.export_light(scene_core, obj, inst.matrix_world, report)
+            lights.export_light(scene_core, obj, inst.matrix_world, report, ray_visibility(obj, report))
             continue
         if obj.type not in mesh.GEOMETRY_TYPES:
             continue
@@ -106,8 +101,7 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
         matrix = mesh.matrix_array(inst.matrix_world, obj.name, report)
         if matrix is None:
             continue
-        check_ray_visibility(obj, report)
-        scene_core.add_instance(mesh_id, matrix, slot_materials, bool(getattr(obj, "visible_camera", True)))
+        scene_core.add_instance(mesh_id, matrix, slot_materials, ray_visibility(obj, report))
         num_instances += 1
 
     world.export_world(scene_core, bl_scene.world, report)

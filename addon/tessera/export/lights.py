@@ -108,7 +108,17 @@ def spot_to_local(m3):
     return inv.reshape(-1).tolist() if np.all(np.isfinite(inv)) else None
 
 
-def export_light(scene_core, obj, matrix_world, report):
+def casts_shadow(light):
+    """Light Properties > Cast Shadow as Cycles reads it: the Cycles setting on
+    Blender 3.x, the light's own from 4.0 (which 3.x's EEVEE used)."""
+    cycles_settings = getattr(light, "cycles", None)
+    if cycles_settings is not None and hasattr(cycles_settings, "cast_shadow"):
+        return bool(cycles_settings.cast_shadow)
+    return bool(getattr(light, "use_shadow", True))
+
+
+def export_light(scene_core, obj, matrix_world, report, visibility):
+    """visibility: the core's ray-kind mask (export.ray_visibility)."""
     light = obj.data
     m = np.array(matrix_world, dtype=np.float64)
     if not np.all(np.isfinite(m)):
@@ -129,14 +139,11 @@ def export_light(scene_core, obj, matrix_world, report):
         # A portal emits nothing in Cycles (Light::has_contribution); it only
         # guides the sampling of the world, which Tessera samples without it.
         return
-    if not getattr(light, "use_shadow", True):
-        report.warn(obj.name, f"Light '{obj.name}' has Cast Shadow off, which Tessera does not model: it "
-                              f"casts shadows here, not in Cycles. Turn Cast Shadow on to get the same image.")
     normalize = bool(getattr(light, "normalize", True))  # Blender 4.x "Normalize"
     if getattr(light, "use_nodes", False):
         report.warn(obj.name, f"Light '{obj.name}' uses a node tree, which Tessera ignores; "
                               f"its colour and power are used.")
-    args = dict(type=kind, position=position.tolist(), direction=direction.tolist())
+    args = dict(type=kind, position=position.tolist(), direction=direction.tolist(), visibility=visibility)
     if kind in ('POINT', 'SPOT'):
         radius = float(light.shadow_soft_size)
         if radius > 0.0:

@@ -6,6 +6,7 @@ import math
 import bpy
 import numpy as np
 
+from .. import core
 from .materials import image_pixels, output_node
 from .nodes import Evaluator, to_color, to_float
 
@@ -47,24 +48,22 @@ def _environment(env_node, report, world_name):
     return px, rotation.astype(np.float32)
 
 
-def check_ray_visibility(world, report):
-    """Warns about World Properties > Ray Visibility that Tessera does not
-    model: the world is seen by every ray (Film > Transparent hides it from
-    the camera)."""
+def ray_visibility(world):
+    """World Properties > Ray Visibility as the core's ray-kind mask (Volume
+    Scatter has no ray in Tessera)."""
     vis = getattr(world, "cycles_visibility", None)
-    off = [label for attr, label in (("camera", "Camera"), ("diffuse", "Diffuse"), ("glossy", "Glossy"),
-                                     ("transmission", "Transmission"), ("scatter", "Volume Scatter"))
-           if not getattr(vis, attr, True)]
-    if off:
-        hint = " (Render Properties > Film > Transparent hides the world from the camera)" if "Camera" in off else ""
-        report.warn(world.name, f"World '{world.name}' has ray visibility off for {', '.join(off)}, which Tessera "
-                                f"does not model: every ray sees it{hint}.")
+    mask = 0
+    for attr, kind in (("camera", "RAY_CAMERA"), ("diffuse", "RAY_DIFFUSE"), ("glossy", "RAY_GLOSSY"),
+                       ("transmission", "RAY_TRANSMISSION")):
+        if getattr(vis, attr, True):
+            mask |= getattr(core.native, kind)
+    return mask
 
 
 def export_world(scene_core, world, report):
     if world is None:
         return  # Blender renders a missing world as black
-    check_ray_visibility(world, report)
+    scene_core.set_world_visibility(ray_visibility(world))
     # Blender 5.0 always uses a world's nodes (use_nodes is deprecated there).
     if world.node_tree is None or (bpy.app.version < (5, 0, 0) and not world.use_nodes):
         scene_core.set_world_color(list(world.color)[:3])
