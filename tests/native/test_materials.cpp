@@ -1053,6 +1053,16 @@ double middle4(const std::vector<float>& px, int size) {
     for (int x = size / 2 - 2; x < size / 2 + 2; ++x) m += px[4 * (size_t(y) * size + x)] / 16.0;
   return m;
 }
+// A floor of material m under one light, seen from 2 above over [-e, e]^2:
+// the middle 4 x 4 pixels.
+double floor_middle(const Material& m, const Light& light, float e, RenderOptions opt) {
+  Scene s;
+  add_square(s, 0.0f, 50.0f, add_material(s, m));
+  s.lights.push_back(light);
+  look_down(s, 2.0f, e, 16);
+  s.commit();
+  return middle4(render(s, opt), 16);
+}
 Light overhead_sun() {
   Light sun;
   sun.type = LightType::Sun;
@@ -1098,20 +1108,15 @@ TEST(Visibility, LightsHiddenFromARayKindLightOnlyTheOtherLobes) {
   const Material lambert = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)});
   const Material glossy = with_closures({closure(ClosureKind::Glossy, 1, vec3(0.8f), 0.4f)});
   auto floor = [&](const Material& m, uint8_t light_visibility) {
-    Scene s;
-    add_square(s, 0.0f, 50.0f, add_material(s, m));
     Light point;
     point.type = LightType::Point;
     point.position = vec3(0.0f, 0.0f, 1.0f);
     point.radiance = vec3(10.0f);
     point.visibility = light_visibility;
-    s.lights.push_back(point);
-    look_down(s, 2.0f, 0.5f, 16);
-    s.commit();
     RenderOptions opt;
     opt.samples = 16;
     opt.max_bounces = 0;
-    return middle4(render(s, opt), 16);
+    return floor_middle(m, point, 0.5f, opt);
   };
   const uint8_t all = kLightDefaultVisibility;
   const double diffuse_lit = floor(lambert, all), diffuse_unseen = floor(lambert, all & ~kRayDiffuse);
@@ -1192,8 +1197,6 @@ TEST(Visibility, WorldHiddenFromTheCameraAndPanelsHiddenFromDiffuseRays) {
 // camera rays; by default (Blender's) it is not.
 TEST(Visibility, AreaLightVisibleToTheCameraIsSeen) {
   auto middle_of = [](uint8_t visibility) {
-    Scene s;
-    add_square(s, 0.0f, 50.0f, add_material(s, with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)})));
     Light area;
     area.type = LightType::Area;
     area.position = vec3(0.0f, 0.0f, 1.0f);
@@ -1203,12 +1206,9 @@ TEST(Visibility, AreaLightVisibleToTheCameraIsSeen) {
     area.area = 1.0f;
     area.radiance = vec3(3.0f);
     area.visibility = visibility;
-    s.lights.push_back(area);
-    look_down(s, 2.0f, 0.25f, 16);
-    s.commit();
     RenderOptions opt;
     opt.samples = 4;
-    return middle4(render(s, opt), 16);
+    return floor_middle(with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.5f), 0.0f)}), area, 0.25f, opt);
   };
   const double unseen = middle_of(kLightDefaultVisibility), seen = middle_of(kLightDefaultVisibility | kRayCamera);
   std::printf("area light: default %.4f, visible to the camera %.4f\n", unseen, seen);
