@@ -61,11 +61,8 @@ float light_pdf_from_vertex(const LightSampler& lights, const Ray& ray, float mi
 
 SceneFeatures scene_features(const Scene& scene) {
   const LightSampler& lights = scene.light_sampler();
-  bool area = false;  // lights that scattered rays can hit (LightSampler::intersect_lights)
-  for (const Light& l : lights.lights())
-    area = area || l.type == LightType::Area || ((l.type == LightType::Point || l.type == LightType::Spot) && l.radius > 0.0f);
   SceneFeatures f;
-  f.hittable_emitters = area || lights.has_sun_disks() || !lights.triangles().empty() || scene.background.emits();
+  f.hittable_emitters = lights.has_hittable_lights() || lights.has_sun_disks() || !lights.triangles().empty() || scene.background.emits();
   f.emits = f.hittable_emitters || !lights.lights().empty();
   f.camera_emission = (scene.background.emits() && scene.background.seen_by(kRayCamera)) || lights.camera_sees_lights();
   for (const Material& m : scene.materials) {

@@ -131,7 +131,9 @@ class LightSampler {
   // from (p, n) would have produced it (p: the scattering vertex the ray left).
   int intersect_lights(const vec3& o, const vec3& d, float tmax, float* t, vec3* le, float* pdf, const vec3& p,
                        const vec3& n, RayKind kind) const;
-  // Some light that rays can hit is visible to the camera.
+  // Some light is of the kind intersect_lights finds (area lights, point
+  // and spot lights with a radius); some of those is visible to the camera.
+  bool has_hittable_lights() const { return !hittable_lights_.empty(); }
   bool camera_sees_lights() const { return camera_sees_lights_; }
   // Suns with an angle are disks at infinity that escaping rays see, as
   // Cycles' integrate_distant_lights: the radiance of those seen by rays of

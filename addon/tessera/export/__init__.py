@@ -28,27 +28,20 @@ class Report:
 # Object Properties > Visibility > Ray Visibility, as Cycles names the rays,
 # and the core's ray kinds (visibility.h). Volume Scatter has no ray in
 # Tessera (no volumes), so it changes nothing.
-_RAY_KINDS = (("visible_camera", "RAY_CAMERA"), ("visible_diffuse", "RAY_DIFFUSE"),
-              ("visible_glossy", "RAY_GLOSSY"), ("visible_transmission", "RAY_TRANSMISSION"),
-              ("visible_shadow", "RAY_SHADOW"))
+_SCATTERED = (("visible_diffuse", "RAY_DIFFUSE"), ("visible_glossy", "RAY_GLOSSY"),
+              ("visible_transmission", "RAY_TRANSMISSION"))
 
 
 def ray_visibility(obj, report):
     """The object's ray visibility as the core's mask: the ray kinds that see
-    it (for a light: that it lights, Camera that camera rays see it, and
-    Shadow that it casts shadows, from the light's Cast Shadow). Warns about
-    the visibility settings Tessera does not model."""
-    mask = 0
-    for attr, kind in _RAY_KINDS:
-        if attr == "visible_shadow" and obj.type == 'LIGHT':
-            continue
-        default = attr != "visible_camera" or obj.type != 'LIGHT'  # lights are unseen by the camera by default
-        if getattr(obj, attr, default):
-            mask |= getattr(core.native, kind)
+    it. For a light, the kinds it lights, Camera (off by default) that camera
+    rays see it, and Shadow that it casts shadows (the light's Cast Shadow).
+    Warns about the visibility settings Tessera does not model."""
+    mask = core.ray_mask(obj, _SCATTERED)
     if obj.type == 'LIGHT':
-        if lights.casts_shadow(obj.data):
-            mask |= core.native.RAY_SHADOW
-        return mask
+        mask |= core.ray_mask(obj, (("visible_camera", "RAY_CAMERA"),), default=False)
+        return mask | (core.native.RAY_SHADOW if lights.casts_shadow(obj.data) else 0)
+    mask |= core.ray_mask(obj, (("visible_camera", "RAY_CAMERA"), ("visible_shadow", "RAY_SHADOW")))
     for attr, label in (("is_holdout", "Holdout"), ("is_shadow_catcher", "Shadow Catcher")):
         if getattr(obj, attr, False):
             report.warn(obj.name, f"Object '{obj.name}' is a {label} (Object Properties > Visibility), which "

@@ -51,13 +51,9 @@ def _environment(env_node, report, world_name):
 def ray_visibility(world):
     """World Properties > Ray Visibility as the core's ray-kind mask (Volume
     Scatter has no ray in Tessera)."""
-    vis = getattr(world, "cycles_visibility", None)
-    mask = 0
-    for attr, kind in (("camera", "RAY_CAMERA"), ("diffuse", "RAY_DIFFUSE"), ("glossy", "RAY_GLOSSY"),
-                       ("transmission", "RAY_TRANSMISSION")):
-        if getattr(vis, attr, True):
-            mask |= getattr(core.native, kind)
-    return mask
+    return core.ray_mask(getattr(world, "cycles_visibility", None),
+                         (("camera", "RAY_CAMERA"), ("diffuse", "RAY_DIFFUSE"), ("glossy", "RAY_GLOSSY"),
+                          ("transmission", "RAY_TRANSMISSION")))
 
 
 def export_world(scene_core, world, report):
