@@ -4,6 +4,7 @@
 #include "wide_traverse.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <stdexcept>
 
 namespace tessera {
@@ -48,14 +49,23 @@ struct Ray4 {
 // bvh8_avx2.cpp), the final compare on the bit patterns as signed integers
 // (tnear >= +0, so a negative tfar culls; SSE2 has no integer max/min).
 // Returns the hit mask, entry distances in tnear.
+static_assert(offsetof(BVH4Node, box) == 0 && alignof(BVH4Node) == 64 && kNodeUnit == 64,
+              "intersect_node finds a far plane by flipping bit 4 of its near plane's address");
+
 inline int intersect_node(const BVH4Node& n, const Ray4& r, __m128& tnear) {
-  const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
-  const __m128 tnx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
-  const __m128 tfx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
-  const __m128 tny = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
-  const __m128 tfy = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
-  const __m128 tnz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
-  const __m128 tfz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
+  // The far plane of each axis by flipping bit 4 of its near plane's
+  // address (a node is 64-byte aligned, an axis's two rows share 32 bytes),
+  // as the BVH8's node tests: three per-ray offsets instead of six.
+  const uintptr_t box = reinterpret_cast<uintptr_t>(n.box);
+  const uintptr_t px = box + uintptr_t(r.near_lo[0]) * 16, py = box + 32 + uintptr_t(r.near_lo[1]) * 16,
+                  pz = box + 64 + uintptr_t(r.near_lo[2]) * 16;
+  auto at = [](uintptr_t a) { return reinterpret_cast<const float*>(a); };
+  const __m128 tnx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(px)), r.org_near[0]), r.inv[0]);
+  const __m128 tfx = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(px ^ 16)), r.org_far[0]), r.inv_far[0]);
+  const __m128 tny = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(py)), r.org_near[1]), r.inv[1]);
+  const __m128 tfy = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(py ^ 16)), r.org_far[1]), r.inv_far[1]);
+  const __m128 tnz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(pz)), r.org_near[2]), r.inv[2]);
+  const __m128 tfz = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(at(pz ^ 16)), r.org_far[2]), r.inv_far[2]);
   tnear = _mm_max_ps(_mm_max_ps(tnx, tny), _mm_max_ps(tnz, _mm_setzero_ps()));
   const __m128 tfar = _mm_min_ps(_mm_min_ps(tfx, tfy), _mm_min_ps(tfz, r.tmax_far));
   return ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_castps_si128(tnear), _mm_castps_si128(tfar)))) & 0xF;

@@ -75,13 +75,18 @@ struct Ray8 {
 //   culls (the float compare accepted +0 <= -0): that box holds no point at
 //   t > 0 in that slab, and hits need t > 0.
 inline int intersect_node8(const BVH8Node& n, const Ray8& r, __m256& tnear) {
-  const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
-  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[0 + nx]), r.org_near[0]), r.inv[0]);
-  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[1 - nx]), r.org_far[0]), r.inv_far[0]);
-  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[2 + ny]), r.org_near[1]), r.inv[1]);
-  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[3 - ny]), r.org_far[1]), r.inv_far[1]);
-  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[4 + nz]), r.org_near[2]), r.inv[2]);
-  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.box[5 - nz]), r.org_far[2]), r.inv_far[2]);
+  // The far plane of each axis by flipping bit 5 of its near plane's
+  // address, as intersect_node8x (bvh8_avx512.cpp): three per-ray offsets.
+  const uintptr_t box = reinterpret_cast<uintptr_t>(n.box);
+  const uintptr_t px = box + uintptr_t(r.near_lo[0]) * 32, py = box + 64 + uintptr_t(r.near_lo[1]) * 32,
+                  pz = box + 128 + uintptr_t(r.near_lo[2]) * 32;
+  auto at = [](uintptr_t a) { return reinterpret_cast<const float*>(a); };
+  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(px)), r.org_near[0]), r.inv[0]);
+  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(px ^ 32)), r.org_far[0]), r.inv_far[0]);
+  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(py)), r.org_near[1]), r.inv[1]);
+  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(py ^ 32)), r.org_far[1]), r.inv_far[1]);
+  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(pz)), r.org_near[2]), r.inv[2]);
+  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(pz ^ 32)), r.org_far[2]), r.inv_far[2]);
   const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
   const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
   const __m256i near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));

@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <new>
 #include <type_traits>
@@ -167,6 +168,9 @@ struct Ray8x {
 // rounding of c moves a plane outwards by an ulp of o inv). Only with c
 // finite on every axis: a c of inf would give inf - inf on the unused
 // lanes' infinite planes.
+static_assert(offsetof(BVH8Node, box) == 0 && alignof(BVH8Node) == 64 && kNodeUnit == 64,
+              "intersect_node8x finds a far plane by flipping bit 5 of its near plane's address");
+
 template <bool kFma>
 inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& near) {
   const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
@@ -175,12 +179,20 @@ inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& nea
   };
   const __m256* on = kFma ? r.c_near : r.o_near;
   const __m256* of = kFma ? r.c_far : r.o_far;
-  const __m256 tnx = plane(n.box[0 + nx], on[0], r.inv[0]);
-  const __m256 tfx = plane(n.box[1 - nx], of[0], r.inv_far[0]);
-  const __m256 tny = plane(n.box[2 + ny], on[1], r.inv[1]);
-  const __m256 tfy = plane(n.box[3 - ny], of[1], r.inv_far[1]);
-  const __m256 tnz = plane(n.box[4 + nz], on[2], r.inv[2]);
-  const __m256 tfz = plane(n.box[5 - nz], of[2], r.inv_far[2]);
+  // Axis a's near plane is box[2 a + near_lo[a]], its far plane the other
+  // one: the same address with bit 5 flipped (a node is 64-byte aligned, an
+  // axis's two planes share one 64-byte line). Three per-ray offsets instead
+  // of six: with six, the node loop had no registers left for them and
+  // reloaded each from the stack at every node.
+  const uintptr_t box = reinterpret_cast<uintptr_t>(n.box);
+  const uintptr_t px = box + uintptr_t(nx) * 32, py = box + 64 + uintptr_t(ny) * 32, pz = box + 128 + uintptr_t(nz) * 32;
+  auto at = [](uintptr_t a) { return reinterpret_cast<const float*>(a); };
+  const __m256 tnx = plane(at(px), on[0], r.inv[0]);
+  const __m256 tfx = plane(at(px ^ 32), of[0], r.inv_far[0]);
+  const __m256 tny = plane(at(py), on[1], r.inv[1]);
+  const __m256 tfy = plane(at(py ^ 32), of[1], r.inv_far[1]);
+  const __m256 tnz = plane(at(pz), on[2], r.inv[2]);
+  const __m256 tfz = plane(at(pz ^ 32), of[2], r.inv_far[2]);
   const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
   const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
   near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));
@@ -188,17 +200,22 @@ inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& nea
   return _mm256_cmple_epi32_mask(near, far);
 }
 
-// The node test of the traversal loops: the root (ref 0) by the subtract-
-// then-multiply form, from the origins, which needs no c; the chain that
-// makes c (o inv after the division, then its rounding) then runs beside the
-// root's loads and test instead of before them. Every ray tests the root,
-// and a random ray few nodes more (modern_hall: 2.1). With every node by
-// multiply-add, random rays there were 4% slower than with none, primary
-// rays (6.2 nodes) 3% faster; with the root apart, random rays are as fast
-// as with none and primary rays keep the gain (docs/BVH_BENCHMARK.md).
-template <bool kFma>
-inline __mmask8 node_test(const BVH8Node& n, uint32_t ref, const Ray8x& r, __m256i& near) {
-  return kFma && ref != 0 ? intersect_node8x<true>(n, r, near) : intersect_node8x<false>(n, r, near);
+// The root's test, before the traversal loops (ref 0 is always a node): by
+// the subtract-then-multiply form, from the origins, which needs no c, so
+// the chain that makes c (o inv after the division, then its rounding) runs
+// beside the root's loads and test instead of before them. Every ray tests
+// the root, and a random ray few nodes more (modern_hall: 2.1): with every
+// node by multiply-add, random rays there were 4% slower than with none,
+// primary rays (6.2 nodes) 3% faster; with the root apart, random rays are
+// as fast as with none and primary rays keep the gain (AMD Zen 5,
+// docs/BVH_BENCHMARK.md). Outside the loop the origins' registers are free
+// once it is done: tested inside it (ref == 0 ? this : multiply-add), the
+// loop held both forms' constants and spilled the far planes' tmax, reloaded
+// at every node.
+inline unsigned root_test(const BVH8Node& root, const Ray8x& r, __m256i& near) {
+  WC(nodes);
+  _mm_prefetch(reinterpret_cast<const char*>(root.child), _MM_HINT_T0);
+  return intersect_node8x<false>(root, r, near);
 }
 
 // Lanes that keep the larger of the pair in bitonic step (k, j) of a
@@ -288,13 +305,20 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
   // with the current t_best would drop it.
   float t_cull = widen_far(tmax);
   const __m512i lane_ids = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  // The root first, by the subtract-then-multiply form (from the origins,
+  // no c), outside the loop (see root_test).
+  const BVH8Node* np = &wide_node<BVH8Node>(base, 0);
+  __m256i tnear;
+  unsigned mask = root_test(*np, ray, tnear);
+  goto tested;
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
-      const BVH8Node& n = wide_node<BVH8Node>(base, ref);
+      np = &wide_node<BVH8Node>(base, ref);
       WC(nodes);
-      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
-      __m256i tnear;
-      const unsigned mask = node_test<kFma>(n, ref, ray, tnear);
+      _mm_prefetch(reinterpret_cast<const char*>(np->child), _MM_HINT_T0);
+      mask = intersect_node8x<kFma>(*np, ray, tnear);
+    tested:
+      const BVH8Node& n = *np;
       WCN(hits_children, __builtin_popcount(mask));
       WCH(__builtin_popcount(mask));
       if (mask != 0) {
@@ -377,13 +401,18 @@ bool occluded8x(const char* base, Ray8x& ray) {
   alignas(32) uint32_t stack[kStackSize + 8];
   int sp = 0;
   uint32_t ref = 0;
+  const BVH8Node* np = &wide_node<BVH8Node>(base, 0);
+  __m256i tnear;
+  unsigned mask = root_test(*np, ray, tnear);
+  goto tested;
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
-      const BVH8Node& n = wide_node<BVH8Node>(base, ref);
+      np = &wide_node<BVH8Node>(base, ref);
       WC(nodes);
-      _mm_prefetch(reinterpret_cast<const char*>(n.child), _MM_HINT_T0);
-      __m256i tnear;
-      const unsigned mask = node_test<kFma>(n, ref, ray, tnear);
+      _mm_prefetch(reinterpret_cast<const char*>(np->child), _MM_HINT_T0);
+      mask = intersect_node8x<kFma>(*np, ray, tnear);
+    tested:
+      const BVH8Node& n = *np;
       WCN(hits_children, __builtin_popcount(mask));
       WCH(__builtin_popcount(mask));
       if (mask != 0) {
