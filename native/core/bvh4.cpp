@@ -4,7 +4,6 @@
 #include "wide_traverse.h"
 
 #include <algorithm>
-#include <cstddef>
 #include <stdexcept>
 
 namespace tessera {
@@ -49,9 +48,6 @@ struct Ray4 {
 // bvh8_avx2.cpp), the final compare on the bit patterns as signed integers
 // (tnear >= +0, so a negative tfar culls; SSE2 has no integer max/min).
 // Returns the hit mask, entry distances in tnear.
-static_assert(offsetof(BVH4Node, box) == 0 && alignof(BVH4Node) == 64 && kNodeUnit == 64,
-              "intersect_node finds a far plane by flipping bit 4 of its near plane's address");
-
 inline int intersect_node(const BVH4Node& n, const Ray4& r, __m128& tnear) {
   // The far plane of each axis by flipping bit 4 of its near plane's
   // address (a node is 64-byte aligned, an axis's two rows share 32 bytes),

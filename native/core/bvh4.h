@@ -5,6 +5,7 @@
 // scalar intersect_triangle, in the same order, so the results are bit for
 // bit those of the scalar test: watertightness carries over unchanged.
 #pragma once
+#include <cstddef>
 #include <emmintrin.h>
 
 #include <vector>
@@ -23,6 +24,9 @@ struct alignas(64) BVH4Node {
   uint32_t pad[3];
 };
 static_assert(sizeof(BVH4Node) == 128, "BVH4Node must stay 128 bytes");
+// The node tests find a far plane by flipping bit 4 of its near plane's
+// address (bvh4.cpp, intersect_node): the boxes start the node, 64-byte aligned.
+static_assert(offsetof(BVH4Node, box) == 0 && alignof(BVH4Node) == 64, "box rows must pair on 32-byte boundaries");
 
 constexpr uint32_t kBVH4LeafBit = 0x80000000u;
 constexpr uint32_t kBVH4EmptyChild = 0xFFFFFFFFu;

@@ -23,6 +23,9 @@ struct alignas(64) BVH8Node {
   uint32_t pad[7];
 };
 static_assert(sizeof(BVH8Node) == 256, "BVH8Node must stay 256 bytes");
+// The node tests find a far plane by flipping bit 5 of its near plane's
+// address (bvh8_avx2.cpp, bvh8_avx512.cpp): the boxes start the node, 64-byte aligned.
+static_assert(offsetof(BVH8Node, box) == 0 && alignof(BVH8Node) == 64, "box rows must pair on 64-byte boundaries");
 
 struct BVH8 : WideBVH<BVH8Node> {};
 

@@ -26,7 +26,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstddef>
 #include <cstring>
 #include <new>
 #include <type_traits>
@@ -168,9 +167,6 @@ struct Ray8x {
 // rounding of c moves a plane outwards by an ulp of o inv). Only with c
 // finite on every axis: a c of inf would give inf - inf on the unused
 // lanes' infinite planes.
-static_assert(offsetof(BVH8Node, box) == 0 && alignof(BVH8Node) == 64 && kNodeUnit == 64,
-              "intersect_node8x finds a far plane by flipping bit 5 of its near plane's address");
-
 template <bool kFma>
 inline __mmask8 intersect_node8x(const BVH8Node& n, const Ray8x& r, __m256i& near) {
   const int nx = r.near_lo[0], ny = r.near_lo[1], nz = r.near_lo[2];
