@@ -10,12 +10,15 @@
 //   within their t error of each other (coplanar duplicates);
 // - the node test's compare lands in a mask register (no movemask) and the
 //   entry distances stay in a register;
-// - closest hit orders the hit children with a sorting network in one zmm
-//   (Embree's in-register sort) instead of an insertion sort with a
-//   mispredicted branch per child: 64-bit keys (tnear bits << 32 | lane) give
-//   exactly the insertion sort's order (nearest first, equal distances by
-//   lane), and the sorted keys, with each lane replaced by its child reference,
-//   are the stack entries themselves: one 64-byte store pushes them all;
+// - closest hit orders three or more hit children with a sorting network in
+//   one ymm (Embree's in-register sort) instead of an insertion sort with a
+//   mispredicted branch per child: 32-bit keys, the entry distance's bits
+//   with the lane in the low three, so distances within 8 ulps count as
+//   equal and go by lane; the sorted keys pick the child references, and the
+//   pairs are the stack entries (two 32-byte stores push them all). No zmm:
+//   the same network over 64-bit keys in one zmm was 3-17% slower on a
+//   Xeon with AVX-512 (docs/BVH_BENCHMARK.md), and 512-bit instructions lower
+//   the clock of the whole core on many Intel CPUs;
 // - any hit pushes the hit children with one compress (vpcompressd) and store,
 //   and does not prefetch them.
 // Headers come before the target pragma (see bvh8_avx2.cpp). AVX-512F makes
@@ -37,7 +40,7 @@
 #pragma GCC target("avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")
 #pragma GCC optimize("fp-contract=off")
 // GCC 12's AVX-512 intrinsics trip -Wmaybe-uninitialized (their
-// _mm512_undefined sources); zmm values never cross a non-inline call here.
+// _mm*_undefined sources); vector values never cross a non-inline call here.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wpsabi"
@@ -223,15 +226,15 @@ constexpr __mmask8 bitonic_max_lanes(int k, int j) {
   return __mmask8(m);
 }
 
-inline __m512i bitonic_step(__m512i v, __m512i partner, __mmask8 take_max) {
-  return _mm512_mask_max_epu64(_mm512_min_epu64(v, partner), take_max, v, partner);
+inline __m256i bitonic_step(__m256i v, __m256i partner, __mmask8 take_max) {
+  return _mm256_mask_max_epu32(_mm256_min_epu32(v, partner), take_max, v, partner);
 }
 
-// Eight unsigned 64-bit keys sorted descending, in registers (six steps).
-inline __m512i sort8_desc(__m512i v) {
-  auto swap1 = [](__m512i x) { return _mm512_shuffle_epi32(x, _MM_PERM_ENUM(0x4E)); };  // i ^ 1
-  auto swap2 = [](__m512i x) { return _mm512_permutex_epi64(x, 0x4E); };                 // i ^ 2
-  auto swap4 = [](__m512i x) { return _mm512_shuffle_i64x2(x, x, 0x4E); };              // i ^ 4
+// Eight unsigned 32-bit keys sorted descending, in registers (six steps).
+inline __m256i sort8_desc(__m256i v) {
+  auto swap1 = [](__m256i x) { return _mm256_shuffle_epi32(x, 0xB1); };         // i ^ 1
+  auto swap2 = [](__m256i x) { return _mm256_shuffle_epi32(x, 0x4E); };         // i ^ 2
+  auto swap4 = [](__m256i x) { return _mm256_permute4x64_epi64(x, 0x4E); };     // i ^ 4
   v = bitonic_step(v, swap1(v), bitonic_max_lanes(2, 1));
   v = bitonic_step(v, swap2(v), bitonic_max_lanes(4, 2));
   v = bitonic_step(v, swap1(v), bitonic_max_lanes(4, 1));
@@ -289,7 +292,7 @@ __attribute__((always_inline)) inline bool leaf_intersect(const char* base, uint
 
 template <bool kOrdered, bool kFma>
 bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
-  // Eight entries of slack: pushes store all eight lanes of a zmm.
+  // Eight entries of slack: pushes store all eight sorted entries.
   alignas(64) WideStackEntry stack[kStackSize + 8];
   static_assert(sizeof(WideStackEntry) == 8, "stack entries are one 64-bit lane: {ref, t} little-endian");
   int sp = 0;
@@ -300,7 +303,7 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
   // planes (widen_far), so that a child is dropped only where the node test
   // with the current t_best would drop it.
   float t_cull = widen_far(tmax);
-  const __m512i lane_ids = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  const __m256i lane_ids = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   // The root first, by the subtract-then-multiply form (from the origins,
   // no c), outside the loop (see root_test).
   const BVH8Node* np = &wide_node<BVH8Node>(base, 0);
@@ -354,24 +357,27 @@ bool intersect8x(const char* base, Ray8x& ray, float& tmax, BVH4Hit& hit) {
           continue;
         }
         for (unsigned m = mask; m; m &= m - 1) prefetch_interior(base, ref, n.child[__builtin_ctz(m)]);
-        // Keys tnear << 32 | lane on hit lanes, 0 elsewhere (sorted last);
-        // descending, the nearest hit child is key h - 1.
-        __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepu32_epi64(tnear), 32), lane_ids);
-        key = sort8_desc(_mm512_maskz_mov_epi64(__mmask8(mask), key));
-        // Low half of each key: its lane's child reference (vpermq reads the
-        // lane from the key's low three bits).
-        const __m512i refs = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child)));
-        const __m512i entries = _mm512_mask_blend_epi32(0x5555, key, _mm512_permutexvar_epi64(key, refs));
-        _mm512_storeu_si512(stack + sp, entries);
-        // The next node, the nearest hit child (the lowest lane on a tie, as
-        // the sorted keys' last), by a min reduction over the eight entry
-        // distances: the six-step sort above stays off the path to the next
-        // node's loads (only the stack store needs it).
-        __m256i m = _mm256_mask_blend_epi32(__mmask8(mask), _mm256_set1_epi32(0x7FFFFFFF), tnear);
-        m = _mm256_min_epi32(m, _mm256_permute4x64_epi64(m, 0x4E));
-        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-        m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
-        ref = n.child[__builtin_ctz(_mm256_mask_cmpeq_epi32_mask(__mmask8(mask), tnear, m))];
+        // Keys (tnear bits & ~7) | lane on hit lanes, 0 elsewhere (sorted
+        // last); descending, the nearest hit child is key h - 1.
+        const __m256i low3 = _mm256_set1_epi32(7);
+        const __m256i key = _mm256_maskz_mov_epi32(__mmask8(mask), _mm256_or_si256(_mm256_andnot_si256(low3, tnear), lane_ids));
+        // The next node, the hit child of the smallest key, by a min
+        // reduction: the six-step sort stays off the path to the next node's
+        // loads (only the stack stores need it).
+        __m256i m = _mm256_mask_blend_epi32(__mmask8(mask), _mm256_set1_epi32(-1), key);
+        m = _mm256_min_epu32(m, _mm256_permute4x64_epi64(m, 0x4E));
+        m = _mm256_min_epu32(m, _mm256_shuffle_epi32(m, 0x4E));
+        m = _mm256_min_epu32(m, _mm256_shuffle_epi32(m, 0xB1));
+        const uint32_t next = n.child[uint32_t(_mm256_cvtsi256_si32(m)) & 7];
+        const __m256i sorted = sort8_desc(key);
+        // Entries {child of the key's lane, the key's distance bits}: at most
+        // the entry distance, so the pop's cull stays conservative.
+        const __m256i refs = _mm256_permutevar8x32_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child)), sorted);
+        const __m256i t = _mm256_andnot_si256(low3, sorted);
+        const __m256i lo = _mm256_unpacklo_epi32(refs, t), hi = _mm256_unpackhi_epi32(refs, t);  // entries 0 1 4 5, 2 3 6 7
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + sp), _mm256_permute2x128_si256(lo, hi, 0x20));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + sp + 4), _mm256_permute2x128_si256(lo, hi, 0x31));
+        ref = next;
         sp += __builtin_popcount(mask) - 1;
         continue;
       }
