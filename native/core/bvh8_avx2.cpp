@@ -22,6 +22,7 @@ bool g_bvh8_avx512 = cpu_has_avx512();
 #pragma GCC push_options
 #pragma GCC target("avx2")
 
+#define TESSERA_TRI4_AVX 1  // TriRay4 may use AVX (simd_tri4.h)
 #include "simd_tri4.h"
 #include "wide_traverse.h"
 

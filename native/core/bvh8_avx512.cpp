@@ -45,6 +45,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wpsabi"
 
+#define TESSERA_TRI4_AVX 1  // TriRay4 may use AVX (simd_tri4.h)
 #include "simd_tri4.h"
 #include "wide_traverse.h"
 

@@ -34,12 +34,37 @@ struct TriRay4 {
   __m128 okx, oky, okz, sx, sy, sz;
   int kx, ky, kz;
   int axes;  // kx | ky << 2 | kz << 4: one register for the cold fallback, not three
-  RayShear shear;
-  vec3 o;
 
-  TriRay4(const vec3& origin, const vec3& d) : shear(d), o(origin) {
+  TriRay4(const vec3& origin, const vec3& d) {
+#ifdef TESSERA_TRI4_AVX
+    // RayShear's axes and values (the same divisions, so the same bits)
+    // without its table loads and its run-time-indexed stack arrays: the
+    // axes by integer arithmetic, the coordinates by lane permutes. This
+    // chain runs when a ray reaches its first leaf, and every leaf test
+    // waits for it.
+    const float ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
+    const int b0 = ax > ay, b1 = ax > az, b2 = ay > az;
+    kz = 2 - 2 * (b0 & b1) - ((b0 ^ 1) & b2);  // RayShear's kMax[b0 | b1 << 1 | b2 << 2]
+    kx = kz + 1 - 3 * (kz == 2);
+    ky = kz + 2 - 3 * (kz != 0);
+    const __m128 d4 = _mm_setr_ps(d.x, d.y, d.z, 0.0f);
+    const __m128 o4 = _mm_setr_ps(origin.x, origin.y, origin.z, 0.0f);
+    const __m128 dz = _mm_permutevar_ps(d4, _mm_set1_epi32(kz));
+    const int swap = -int(_mm_cvtss_f32(dz) < 0.0f);  // keep the winding order
+    const int t = (kx ^ ky) & swap;
+    kx ^= t, ky ^= t;
+    // (d[kx], d[ky], 1, 1) / d[kz]: sx, sy, sz.
+    const __m128 num = _mm_blend_ps(_mm_permutevar_ps(d4, _mm_setr_epi32(kx, ky, 0, 0)), _mm_set1_ps(1.0f), 0xC);
+    const __m128 q = _mm_div_ps(num, dz);
+    sx = _mm_permute_ps(q, 0x00);
+    sy = _mm_permute_ps(q, 0x55);
+    sz = _mm_permute_ps(q, 0xAA);
+    okx = _mm_permutevar_ps(o4, _mm_set1_epi32(kx));
+    oky = _mm_permutevar_ps(o4, _mm_set1_epi32(ky));
+    okz = _mm_permutevar_ps(o4, _mm_set1_epi32(kz));
+#else
+    const RayShear shear(d);
     kx = shear.kx, ky = shear.ky, kz = shear.kz;
-    axes = kx | ky << 2 | kz << 4;
     const float ov[3] = {origin.x, origin.y, origin.z};  // no switch on the run-time index
     okx = _mm_set1_ps(ov[kx]);
     oky = _mm_set1_ps(ov[ky]);
@@ -47,6 +72,8 @@ struct TriRay4 {
     sx = _mm_set1_ps(shear.sx);
     sy = _mm_set1_ps(shear.sy);
     sz = _mm_set1_ps(shear.sz);
+#endif
+    axes = kx | ky << 2 | kz << 4;
   }
 };
 
