@@ -5,7 +5,8 @@
 //             [--bins 4,8,16,32,64] [--builder-threads T] [--builder-res R] [--builder-meshes a,b]
 //             [--clock wall|cpu] [--stat median|min] mesh files...
 //   bench_bvh --mode trace [--kind primary|diffuse|random|shadow|all] [--engine tessera|sse2|embree] ...
-//             (one engine only, for perf)
+//             (one engine only, for perf; PASSES=1 also prints each pass's Mrays/s, MISS=1 moves
+//             the rays off the mesh: the per-ray cost outside the traversal loop)
 //   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
 //             (default tree against one built with those options, same traversal, alternating)
 //   bench_bvh --mode ab --ab-base max-leaf=8,sah-block=4,bins=32,tri-cost=1.5,sweep,drop-degenerate ...
@@ -629,6 +630,10 @@ void trace_only(const Config& cfg) {
         }));
       std::printf("%s %s %s %.3f Mrays/s\n", basename_of(path).c_str(), rays.kind.c_str(), cfg.engine.c_str(),
                   rays.size() / median(st) * 1e-6);
+      if (getenv("PASSES")) {  // each pass's Mrays/s, in order
+        for (double s : st) std::printf(" %.1f", rays.size() / s * 1e-6);
+        std::printf("\n");
+      }
 #ifdef TESSERA_BVH_COUNTERS
       {  // per ray over all passes; node visits by number of children hit
         WideCounters& c = g_wide_counters;
