@@ -8,6 +8,7 @@
 #include <new>
 #include <type_traits>
 
+#include "octahedral.h"
 #include "simd.h"
 
 
@@ -15,7 +16,7 @@ namespace tessera {
 
 size_t Mesh::memory_bytes() const {
   return tri_verts.capacity() * sizeof(vec3) + prim_ids.capacity() * sizeof(uint32_t) +
-         material_slots.capacity() * sizeof(uint32_t) + corner_normals.capacity() * sizeof(vec3) +
+         material_slots.capacity() * sizeof(uint32_t) + corner_normals.capacity() * sizeof(uint32_t) +
          corner_uvs.capacity() * sizeof(vec2) + bvh.memory_bytes() + bvh8.memory_bytes();
 }
 
@@ -76,7 +77,10 @@ void copy_attributes(Mesh& mesh, const MeshInput& in) {
   if (in.material_slots) mesh.material_slots.assign(in.material_slots, in.material_slots + nt);
   if (in.corner_normals) {
     const vec3* n = reinterpret_cast<const vec3*>(in.corner_normals);
-    mesh.corner_normals.assign(n, n + 3 * nt);
+    mesh.corner_normals.resize(3 * nt);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, 3 * nt, 16384), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) mesh.corner_normals[i] = oct_encode(n[i]);
+    });
   }
   if (in.corner_uvs) {
     const vec2* uv = reinterpret_cast<const vec2*>(in.corner_uvs);

@@ -27,7 +27,7 @@ struct Mesh {
   BVHArray<vec3> tri_verts;             // 3 per triangle, BVH leaf order (resize leaves them unwritten)
   std::vector<uint32_t> prim_ids;       // leaf order -> Blender triangle index
   std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
-  std::vector<vec3> corner_normals;     // Blender order, 3 per triangle; empty: flat
+  std::vector<uint32_t> corner_normals; // Blender order, 3 per triangle, octahedral (octahedral.h); empty: flat
   std::vector<vec2> corner_uvs;         // Blender order, 3 per triangle; empty: none
   // The BLAS over tri_verts (leaves: contiguous ranges), one of: the SSE2
   // four-wide BVH4, or the AVX2 eight-wide BVH8 (BuildOptions::bvh_width).

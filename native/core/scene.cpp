@@ -4,6 +4,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "octahedral.h"
 #include "traverse.h"
 
 namespace tessera {
@@ -277,8 +278,8 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
   vec3 ng = glm::cross(v[1] - v[0], v[2] - v[0]);
   vec3 ns(0.0f);
   if (!mesh.corner_normals.empty()) {
-    const vec3* n = &mesh.corner_normals[3 * size_t(prim_id)];
-    ns = b0 * n[0] + hit.u * n[1] + hit.v * n[2];
+    const uint32_t* n = &mesh.corner_normals[3 * size_t(prim_id)];
+    ns = b0 * oct_decode(n[0]) + hit.u * oct_decode(n[1]) + hit.v * oct_decode(n[2]);
   }
   if (!inst.identity) {
     const glm::mat3 m(inst.to_world);
