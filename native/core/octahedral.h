@@ -4,9 +4,10 @@
 // its L1 norm, the lower half folded over the upper, 16 bits per coordinate.
 // Encoding picks the best of the four grid points around the projection
 // (their "precise" oct32), judged in double: at most 0.0025 degrees (4e-5
-// rad) off over 200k random directions (test Numerics.OctahedralNormalsRoundTrip),
-// in a third of the memory of three floats per corner normal. Codes run 0..65534 per axis so that
-// 32767 is exactly 0 and axis-aligned normals come back exact.
+// rad) off over 200k random directions (test
+// Numerics.OctahedralNormalsRoundTrip), in a third of the memory of three
+// floats per corner normal. Codes run 0..65534 per axis so that 32767 is
+// exactly 0 and axis-aligned normals come back exact.
 #pragma once
 #include <cstdint>
 #include "math.h"

@@ -4,7 +4,9 @@
 // SSE2) and by the BVH8 traversal (compiled for AVX2, where the same
 // intrinsics are VEX-encoded; no FMA is enabled there, so nothing is
 // contracted and the rounding is the same). Everything here has internal
-// linkage so that the two compilations never get merged by the linker.
+// linkage so that the two compilations never get merged by the linker. The
+// BVH8 kernels define TESSERA_TRI4_AVX first: TriRay4's set-up may then use
+// AVX permutes (GCC's target pragma does not define __AVX__).
 #pragma once
 #include <immintrin.h>
 
