@@ -1,10 +1,12 @@
 // Eight-wide BVH for triangle meshes, used when the CPU has AVX2: collapsed
-// from the same binary SAH tree as the BVH4, one 8-wide slab test per node
-// (AVX, same arithmetic per lane as intersect_box), triangles in the same Tri4
-// blocks and the same watertight SIMD triangle test as the BVH4, so hits are
-// bit for bit those of the BVH4 and of the scalar test. The traversal is
-// compiled for AVX2 in its own functions (bvh8_avx2.cpp) and only ever called
-// after cpu_simd_level() said AVX2.
+// from the same binary SAH tree as the BVH4, one 8-wide slab test per node,
+// triangles in the same Tri4 blocks and the same watertight SIMD triangle
+// test as the BVH4, so hits are bit for bit those of the BVH4 and of the
+// scalar test (but for the order of children whose entry distances tie
+// within an ulp; bvh8_traverse.h). The traversal (bvh8_traverse.h) is
+// compiled for AVX2 and FMA (bvh8_avx2.cpp) and for AVX-512
+// (bvh8_avx512.cpp) in their own functions, only ever called after
+// cpu_simd_level() said AVX2.
 #pragma once
 #include <vector>
 

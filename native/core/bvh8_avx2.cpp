@@ -1,14 +1,21 @@
-// BVH8 traversal compiled for AVX2 (see bvh8.h). Every header is included
-// before the target pragma, so inline functions from them keep the baseline
-// target and the linker can never pick an AVX2 copy for baseline code; the
-// code below the pragma has internal linkage except the two entry points.
-// FMA is not enabled: no multiply-add is contracted, so the box and triangle
-// arithmetic rounds exactly as in the SSE2 BVH4 and the scalar tests.
+// BVH8 traversal compiled for AVX2 and FMA (see bvh8.h): the loops of
+// bvh8_traverse.h with the AVX2 forms of their few instruction-set-specific
+// steps (below). Every header is included before the target pragma, so
+// inline functions from them keep the baseline target and the linker can
+// never pick an AVX2 copy for baseline code; the code below the pragma has
+// internal linkage except the entry points. FMA makes GCC contract a * b + c
+// (even across intrinsics), which would change the triangle test's
+// rounding: fp-contract is off for everything below, so the triangle
+// arithmetic rounds exactly as in the SSE2 BVH4 and the scalar tests; the
+// node test's multiply-adds are explicit.
 #include <immintrin.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <new>
+#include <type_traits>
 
 #include "bvh8.h"
 #include "simd.h"
@@ -20,7 +27,11 @@ bool g_bvh8_avx512 = cpu_has_avx512();
 }  // namespace tessera
 
 #pragma GCC push_options
-#pragma GCC target("avx2")
+#pragma GCC target("avx2,fma")
+#pragma GCC optimize("fp-contract=off")
+// Vector arguments of the internal lambdas: nothing here crosses an ABI boundary.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 #define TESSERA_TRI4_AVX 1  // TriRay4 may use AVX (simd_tri4.h)
 #include "simd_tri4.h"
@@ -29,97 +40,92 @@ bool g_bvh8_avx512 = cpu_has_avx512();
 namespace tessera {
 namespace {
 
-struct Ray8 {
-  __m256 org_near[3], org_far[3], inv[3], inv_far[3];
-  __m256 tmax8_far;  // tmax widened as the far planes
-  __m128 tmax4;
-  int near_lo[3];
-  TriRay4 tri;
-
-  Ray8(const vec3& origin, const vec3& d, float t_max) : tri(origin, d) {
-    for (int i = 0; i < 3; ++i) {
-      // The same per-axis values as Ray4 / TraversalRay, without branches on
-      // the direction's signs (incoherent rays mispredict them).
-      float di = std::abs(d[i]) < 1e-30f ? std::copysign(1e-30f, d[i]) : d[i];
-      float inv_i = 1.0f / di;
-      inv[i] = _mm256_set1_ps(inv_i);
-      inv_far[i] = _mm256_set1_ps(widen_far(inv_i));
-      near_lo[i] = int(!(inv_i >= 0.0f));
-      // delta >= 0; near origin o + delta (inv >= 0) or o - delta, far the other.
-      const float delta = parallel_axis_delta(origin[i], d[i]);
-      const float signed_delta = flip_sign(delta, near_lo[i]);
-      org_near[i] = _mm256_set1_ps(origin[i] + signed_delta);
-      org_far[i] = _mm256_set1_ps(origin[i] - signed_delta);
-    }
-    set_tmax(t_max);
+// For each 8-bit lane mask, the indices of its set lanes in order, one byte
+// each (the rest 0): AVX2 has no compress, so push_compressed permutes by these.
+constexpr std::array<uint64_t, 256> compress_table() {
+  std::array<uint64_t, 256> t{};
+  for (int m = 0; m < 256; ++m) {
+    int k = 0;
+    for (int i = 0; i < 8; ++i)
+      if (m >> i & 1) t[m] |= uint64_t(i) << (8 * k++);
   }
-  void set_tmax(float t) {
-    tmax8_far = _mm256_set1_ps(widen_far(t));
-    tmax4 = _mm_set1_ps(t);
-  }
-};
-
-// Slab test against the eight child boxes: intersect_box's arithmetic on the
-// near planes, at least as wide on the far planes, with a short dependency
-// chain (a node visit is a chain of dependent loads and this arithmetic):
-// - the far planes' widening is folded into their inverse direction and into
-//   tmax (widen_far in aabb.h): |round((b - o) inv_far)| is at least intersect_box's
-//   round(round((b - o) inv) (1 + 2 gamma(3))), as every rounding is
-//   monotonic and costs at most one ulp, and inv_far is two ulps beyond
-//   inv (1 + 2 gamma(3)); no multiply after the min;
-// - max, min and compare run on the floats' bit patterns as signed integers
-//   (1 cycle instead of 4): that order is float order on non-negative floats
-//   and puts every negative float below +0. tnear, maxed with +0, is the
-//   float max exactly (the near-first order and the pop cull are unchanged);
-//   tfar is negative exactly when some far distance or tmax is negative, and
-//   any negative tfar culls, as tnear >= +0. A far plane at exactly -0 now
-//   culls (the float compare accepted +0 <= -0): that box holds no point at
-//   t > 0 in that slab, and hits need t > 0.
-inline int intersect_node8(const BVH8Node& n, const Ray8& r, __m256& tnear) {
-  // The far plane of each axis by flipping bit 5 of its near plane's
-  // address, as intersect_node8x (bvh8_avx512.cpp): three per-ray offsets.
-  const uintptr_t box = reinterpret_cast<uintptr_t>(n.box);
-  const uintptr_t px = box + uintptr_t(r.near_lo[0]) * 32, py = box + 64 + uintptr_t(r.near_lo[1]) * 32,
-                  pz = box + 128 + uintptr_t(r.near_lo[2]) * 32;
-  auto at = [](uintptr_t a) { return reinterpret_cast<const float*>(a); };
-  const __m256 tnx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(px)), r.org_near[0]), r.inv[0]);
-  const __m256 tfx = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(px ^ 32)), r.org_far[0]), r.inv_far[0]);
-  const __m256 tny = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(py)), r.org_near[1]), r.inv[1]);
-  const __m256 tfy = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(py ^ 32)), r.org_far[1]), r.inv_far[1]);
-  const __m256 tnz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(pz)), r.org_near[2]), r.inv[2]);
-  const __m256 tfz = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(at(pz ^ 32)), r.org_far[2]), r.inv_far[2]);
-  const __m256i inx = _mm256_castps_si256(tnx), iny = _mm256_castps_si256(tny), inz = _mm256_castps_si256(tnz);
-  const __m256i ifx = _mm256_castps_si256(tfx), ify = _mm256_castps_si256(tfy), ifz = _mm256_castps_si256(tfz);
-  const __m256i near = _mm256_max_epi32(_mm256_max_epi32(inx, iny), _mm256_max_epi32(inz, _mm256_setzero_si256()));
-  const __m256i far = _mm256_min_epi32(_mm256_min_epi32(ifx, ify), _mm256_min_epi32(ifz, _mm256_castps_si256(r.tmax8_far)));
-  tnear = _mm256_castsi256_ps(near);
-  return ~_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(near, far))) & 0xFF;
+  return t;
 }
+alignas(64) constexpr std::array<uint64_t, 256> kCompressLanes = compress_table();
 
-// BVH8 for wide_intersect / wide_occluded.
-struct Bvh8Traits {
-  static constexpr int kWidth = 8;
-  static constexpr int kStackSize = 512;
-  using Node = BVH8Node;
-  using Ray = Ray8;
-  static int test(const Node& n, const Ray& r, float* dist) {
-    __m256 tn;
-    const int mask = intersect_node8(n, r, tn);
-    _mm256_store_ps(dist, tn);
-    return mask;
+// The steps of bvh8_traverse.h in AVX2: masks as vectors (all ones on a
+// lane, or none), blends by immediates or by those vectors.
+struct Avx2 {
+  static constexpr bool kTernaryLogic = false;
+
+  // The node test's missed lanes (tnear > tfar: all ones) and entry distances.
+  struct NodeHits {
+    __m256i near, miss;
+  };
+  static NodeHits node_hits(__m256i near, __m256i far) { return {near, _mm256_cmpgt_epi32(near, far)}; }
+  static unsigned mask(const NodeHits& h) { return ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(h.miss))) & 0xFF; }
+  // v on the hit lanes, 0 elsewhere.
+  static __m256i hit_keys(const NodeHits& h, __m256i v) { return _mm256_andnot_si256(h.miss, v); }
+  // key on the hit lanes, all ones elsewhere.
+  static __m256i miss_ones(const NodeHits& h, __m256i key) { return _mm256_or_si256(key, h.miss); }
+  // One step of the bitonic network: the larger of (v, partner) on the
+  // lanes in kTakeMax, the smaller elsewhere.
+  template <int kTakeMax>
+  static __m256i bitonic_step(__m256i v, __m256i partner) {
+    return _mm256_blend_epi32(_mm256_min_epu32(v, partner), _mm256_max_epu32(v, partner), kTakeMax);
   }
-  static __m128 tri_tmax(const Ray& r) { return r.tmax4; }
-  static void set_tmax(Ray& r, float t) { r.set_tmax(t); }
-  static void prefetch(const char* base, uint32_t ref) {
-    const char* p = base + size_t(ref) * kNodeUnit;
-    _mm_prefetch(p, _MM_HINT_T0);
-    _mm_prefetch(p + 64, _MM_HINT_T0);
-    _mm_prefetch(p + 128, _MM_HINT_T0);
-    _mm_prefetch(p + 192, _MM_HINT_T0);
+  // The lanes of refs in `lanes`, in lane order, stored from dst (eight
+  // entries written).
+  static void push_compressed(uint32_t* dst, __m256i refs, unsigned lanes) {
+    alignas(32) uint32_t r[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(r), refs);
+    for (; lanes; lanes &= lanes - 1) *dst++ = r[__builtin_ctz(lanes)];
+  }
+  // widen_far (aabb.h) lane by lane: x (1 + 2 gamma(3)), then two ulps out
+  // unless zero, inf or NaN; a magnitude within two ulps of inf becomes inf.
+  static __m128 widen_far(__m128 x) {
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 w = _mm_mul_ps(x, _mm_set1_ps(1.0f + 2.0f * gamma(3)));
+    const __m128i mag = _mm_castps_si128(_mm_andnot_ps(sign, w));
+    const __m128i keep = _mm_or_si128(_mm_cmpeq_epi32(mag, _mm_setzero_si128()), _mm_cmpgt_epi32(mag, bits(kMaxFloat)));
+    const __m128i to_inf = _mm_andnot_si128(keep, _mm_cmpgt_epi32(mag, bits(kMaxFloatMinus2)));
+    const __m128i wf = _mm_add_epi32(_mm_castps_si128(w), _mm_andnot_si128(keep, bits(kTwo)));
+    const __m128 inf = _mm_or_ps(_mm_and_ps(w, sign), _mm_set1_ps(kInf));
+    return _mm_blendv_ps(_mm_castsi128_ps(wf), inf, _mm_castsi128_ps(to_inf));
+  }
+  // The next float up, on the bit patterns: +1 for a float >= +0 and -1 for
+  // a negative one; + 0 first turns -0 into +0. A result below the smallest
+  // normal float goes to it (positive) or to +0 (negative), still an upper
+  // bound: a subnormal constant would make every node test's multiply-add a
+  // microcode assist (~100 cycles), and o inv rounds to 0 wherever an origin
+  // coordinate is 0 (a camera on an axis, a ray leaving a floor at z = 0).
+  static __m128 next_up(__m128 x) {
+    const __m128i b = _mm_castps_si128(_mm_add_ps(x, _mm_setzero_ps()));
+    const __m128i r = _mm_add_epi32(b, _mm_or_si128(_mm_srai_epi32(b, 31), bits(kOne)));
+    const __m128i min_normal = bits(kMinNormal);
+    const __m128i tiny = _mm_cmpgt_epi32(min_normal, _mm_castps_si128(_mm_andnot_ps(_mm_set1_ps(-0.0f), _mm_castsi128_ps(r))));
+    const __m128i positive = _mm_cmpgt_epi32(r, _mm_setzero_si128());
+    return _mm_castsi128_ps(_mm_or_si128(_mm_andnot_si128(tiny, r), _mm_and_si128(_mm_and_si128(tiny, positive), min_normal)));
+  }
+
+ private:
+  // Integer constants as the floats with their bits, which GCC loads from
+  // memory with one broadcast (it builds integer ones in general registers
+  // and moves them over: three instructions each, a fifth of the ray set-up).
+  static constexpr uint32_t kMaxFloat = 0x7F7FFFFF, kMaxFloatMinus2 = 0x7F7FFFFD, kTwo = 2, kOne = 1, kMinNormal = 0x00800000;
+  static __m128i bits(uint32_t b) {
+    float f;
+    std::memcpy(&f, &b, 4);
+    return _mm_castps_si128(_mm_set1_ps(f));
   }
 };
 
 }  // namespace
+}  // namespace tessera
+
+#include "bvh8_traverse.h"
+
+namespace tessera {
 
 #ifdef TESSERA_BVH_COUNTERS
 WideCounters g_wide_counters;
@@ -128,10 +134,7 @@ WideCounters g_wide_counters;
 template <bool kOrdered>
 bool bvh8_intersect_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float& tmax, BVH4Hit& hit) {
   if (g_bvh8_avx512) return bvh8_intersect_avx512<kOrdered>(bvh, o, d, tmax, hit);
-  if (bvh.empty()) return false;
-  WC(rays);
-  Ray8 ray(o, d, tmax);
-  return wide_intersect<Bvh8Traits, kOrdered>(bvh.base(), ray, tmax, hit);
+  return bvh8_intersect<Avx2, kOrdered>(bvh, o, d, tmax, hit);
 }
 
 template bool bvh8_intersect_avx2<true>(const BVH8&, const vec3&, const vec3&, float&, BVH4Hit&);
@@ -139,12 +142,10 @@ template bool bvh8_intersect_avx2<false>(const BVH8&, const vec3&, const vec3&, 
 
 bool bvh8_occluded_avx2(const BVH8& bvh, const vec3& o, const vec3& d, float tmax) {
   if (g_bvh8_avx512) return bvh8_occluded_avx512(bvh, o, d, tmax);
-  if (bvh.empty()) return false;
-  WC(rays);
-  Ray8 ray(o, d, tmax);
-  return wide_occluded<Bvh8Traits>(bvh.base(), ray);
+  return bvh8_occluded<Avx2>(bvh, o, d, tmax);
 }
 
 }  // namespace tessera
 
+#pragma GCC diagnostic pop
 #pragma GCC pop_options

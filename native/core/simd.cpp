@@ -10,7 +10,8 @@ static SimdLevel detect() {
   if (env && (std::strcmp(env, "sse2") == 0 || std::strcmp(env, "SSE2") == 0)) return SimdLevel::SSE2;
 #if defined(__x86_64__) || defined(__i386__)
   __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return SimdLevel::AVX2;
+  // The BVH8 kernels use FMA next to AVX2 (every CPU with AVX2 has had it).
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return SimdLevel::AVX2;
 #endif
   return SimdLevel::SSE2;
 }

@@ -1,14 +1,15 @@
 // Run-time choice of the SIMD path. The product is compiled for the x86-64
-// baseline (SSE2); code for AVX2 and AVX-512 lives in functions compiled for
-// that target (bvh8_avx2.cpp, bvh8_avx512.cpp) and is only called when the
-// CPU reports it.
+// baseline (SSE2); code for AVX2 (with FMA) and AVX-512 lives in functions
+// compiled for that target (bvh8_avx2.cpp, bvh8_avx512.cpp) and is only
+// called when the CPU reports it.
 #pragma once
 
 namespace tessera {
 
 enum class SimdLevel { SSE2 = 0, AVX2 = 1 };
 
-// What the CPU supports, checked once (__builtin_cpu_supports). The
+// What the CPU supports, checked once (__builtin_cpu_supports): AVX2 means
+// AVX2 and FMA (no CPU has shipped the one without the other). The
 // environment variable TESSERA_SIMD=sse2 forces the baseline, TESSERA_SIMD=avx2
 // AVX2 without AVX-512 (for tests and benchmarks of each path).
 SimdLevel cpu_simd_level();

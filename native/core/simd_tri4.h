@@ -1,12 +1,13 @@
 // The four-triangle SIMD version of the watertight test in triangle.h (SSE,
 // one triangle per lane, exactly the scalar float operations in the same
 // order: bit-identical results). Included by the BVH4 traversal (baseline
-// SSE2) and by the BVH8 traversal (compiled for AVX2, where the same
-// intrinsics are VEX-encoded; no FMA is enabled there, so nothing is
-// contracted and the rounding is the same). Everything here has internal
+// SSE2) and by the BVH8 traversals (compiled for AVX2 and for AVX-512, where
+// the same intrinsics are VEX-encoded; both enable FMA with fp-contract off,
+// so nothing is contracted and the rounding is the same). Everything here has internal
 // linkage so that the two compilations never get merged by the linker. The
-// BVH8 kernels define TESSERA_TRI4_AVX first: TriRay4's set-up may then use
-// AVX permutes (GCC's target pragma does not define __AVX__).
+// BVH8 kernels define TESSERA_TRI4_AVX first: TriRay4 is then made from
+// their per-ray vectors with AVX permutes (GCC's target pragma does not
+// define __AVX__).
 #pragma once
 #include <immintrin.h>
 
@@ -37,21 +38,22 @@ struct TriRay4 {
   int kx, ky, kz;
   int axes;  // kx | ky << 2 | kz << 4: one register for the cold fallback, not three
 
-  TriRay4(const vec3& origin, const vec3& d) {
 #ifdef TESSERA_TRI4_AVX
-    // RayShear's axes and values (the same divisions, so the same bits)
-    // without its table loads and its run-time-indexed stack arrays: the
-    // axes by integer arithmetic, the coordinates by lane permutes. This
-    // chain runs when a ray reaches its first leaf, and every leaf test
-    // waits for it.
-    const float ax = std::abs(d.x), ay = std::abs(d.y), az = std::abs(d.z);
-    const int b0 = ax > ay, b1 = ax > az, b2 = ay > az;
-    kz = 2 - 2 * (b0 & b1) - ((b0 ^ 1) & b2);  // RayShear's kMax[b0 | b1 << 1 | b2 << 2]
+  // From the BVH8 kernels' per-ray vectors (x, y, z in lanes 0-2): RayShear's
+  // axes and values (the same divisions, so the same bits) without its
+  // table loads and run-time-indexed stack arrays. kz, the largest |d| (the
+  // highest axis on ties, as RayShear's table), by a lane max and compare;
+  // the coordinates by lane permutes. This runs when a ray reaches its first
+  // leaf, and every leaf test waits for it.
+  TriRay4(__m128 o4, __m128 d4) {
+    const __m128 abs_d = _mm_andnot_ps(_mm_set1_ps(-0.0f), d4);
+    const __m128 m = _mm_max_ps(_mm_max_ps(abs_d, _mm_permute_ps(abs_d, 0x55)), _mm_permute_ps(abs_d, 0xAA));
+    const int is_max = _mm_movemask_ps(_mm_cmpeq_ps(abs_d, _mm_permute_ps(m, 0x00))) & 7;
+    kz = is_max ? 31 - __builtin_clz(unsigned(is_max)) : 2;  // none: a NaN direction
     kx = kz + 1 - 3 * (kz == 2);
     ky = kz + 2 - 3 * (kz != 0);
-    const __m128 d4 = _mm_setr_ps(d.x, d.y, d.z, 0.0f);
-    const __m128 o4 = _mm_setr_ps(origin.x, origin.y, origin.z, 0.0f);
-    const __m128 dz = _mm_permutevar_ps(d4, _mm_set1_epi32(kz));
+    const __m128i kz4 = _mm_set1_epi32(kz);
+    const __m128 dz = _mm_permutevar_ps(d4, kz4);
     const int swap = -int(_mm_cvtss_f32(dz) < 0.0f);  // keep the winding order
     const int t = (kx ^ ky) & swap;
     kx ^= t, ky ^= t;
@@ -63,8 +65,11 @@ struct TriRay4 {
     sz = _mm_permute_ps(q, 0xAA);
     okx = _mm_permutevar_ps(o4, _mm_set1_epi32(kx));
     oky = _mm_permutevar_ps(o4, _mm_set1_epi32(ky));
-    okz = _mm_permutevar_ps(o4, _mm_set1_epi32(kz));
+    okz = _mm_permutevar_ps(o4, kz4);
+    axes = kx | ky << 2 | kz << 4;
+  }
 #else
+  TriRay4(const vec3& origin, const vec3& d) {
     const RayShear shear(d);
     kx = shear.kx, ky = shear.ky, kz = shear.kz;
     const float ov[3] = {origin.x, origin.y, origin.z};  // no switch on the run-time index
@@ -74,9 +79,9 @@ struct TriRay4 {
     sx = _mm_set1_ps(shear.sx);
     sy = _mm_set1_ps(shear.sy);
     sz = _mm_set1_ps(shear.sz);
-#endif
     axes = kx | ky << 2 | kz << 4;
   }
+#endif
 };
 
 // An edge function is exactly zero in some lane (`zero`): those lanes redo
@@ -171,34 +176,34 @@ __attribute__((always_inline)) inline int intersect_tri4(const Tri4& tri, const 
     redo_zero_edges(ax, ay, bx, by, cx, cy, any_zero, u, v, w);
   }
   const __m128 det = _mm_add_ps(_mm_add_ps(u, v), w);
-  // Not both signs among the edge functions, and det not zero.
-  auto general_sign_test = [&] {
+  // The lanes whose edge functions have not both signs, and det not zero.
+  // With no edge function zero (unless redone above, where one may still
+  // be), that is "all three sign bits equal", and det, their sum, is then
+  // not zero either (a NaN lane may pass here; its t is NaN and fails
+  // below): kAvx512 by three-input logic (a & b & c | ~a & ~b & ~c),
+  // otherwise by (u ^ v) | (u ^ w) having no sign bit.
+  int valid;
+  if (__builtin_expect(some_zero, 0)) {
     const __m128 neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)), _mm_cmplt_ps(w, zero));
     const __m128 pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)), _mm_cmpgt_ps(w, zero));
-    return _mm_and_ps(_mm_andnot_ps(_mm_and_ps(neg, pos), _mm_castsi128_ps(_mm_set1_epi32(-1))), _mm_cmpneq_ps(det, zero));
-  };
-  __m128 valid;
-  if constexpr (kAvx512) {
-    // No edge function is zero (unless redone above, where one may still
-    // be), so "not both signs" is "all three sign bits equal" (a & b & c |
-    // ~a & ~b & ~c), and then det, their sum, is not zero either. (A NaN
-    // lane may pass here; its t is NaN and fails below.)
-    valid = some_zero ? general_sign_test()
-                      : _mm_castsi128_ps(_mm_ternarylogic_epi32(_mm_castps_si128(u), _mm_castps_si128(v), _mm_castps_si128(w), 0x81));
+    valid = ~_mm_movemask_ps(_mm_and_ps(neg, pos)) & _mm_movemask_ps(_mm_cmpneq_ps(det, zero));
+  } else if constexpr (kAvx512) {
+    valid = _mm_movemask_ps(_mm_castsi128_ps(
+        _mm_ternarylogic_epi32(_mm_castps_si128(u), _mm_castps_si128(v), _mm_castps_si128(w), 0x81)));
   } else {
-    valid = general_sign_test();
+    valid = ~_mm_movemask_ps(_mm_or_ps(_mm_xor_ps(u, v), _mm_xor_ps(u, w))) & 0xF;
   }
-  if (_mm_movemask_ps(valid) == 0) return 0;
+  if (valid == 0) return 0;
   WC(sign_pass);
   const __m128 az = _mm_mul_ps(r.sz, az0), bz = _mm_mul_ps(r.sz, bz0), cz = _mm_mul_ps(r.sz, cz0);
   const __m128 t_scaled = _mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz));
-  const __m128 tmd = _mm_mul_ps(tmax, det);
-  const __m128 det_neg = _mm_cmplt_ps(det, zero);
-  const __m128 fail_neg = _mm_or_ps(_mm_cmpge_ps(t_scaled, zero), _mm_cmplt_ps(t_scaled, tmd));
-  const __m128 fail_pos = _mm_or_ps(_mm_cmple_ps(t_scaled, zero), _mm_cmpgt_ps(t_scaled, tmd));
-  const __m128 fail = _mm_or_ps(_mm_and_ps(det_neg, fail_neg), _mm_andnot_ps(det_neg, fail_pos));
-  valid = _mm_andnot_ps(fail, valid);
-  const int passed = _mm_movemask_ps(valid);
+  // 0 < t_scaled / det < tmax without dividing: with det's sign moved onto
+  // both sides (exact), 0 < t_scaled' <= tmax det', the scalar test's two
+  // branches in one.
+  const __m128 det_sign = _mm_and_ps(det, _mm_set1_ps(-0.0f));
+  const __m128 ts = _mm_xor_ps(t_scaled, det_sign);
+  const __m128 tmd = _mm_xor_ps(_mm_mul_ps(tmax, det), det_sign);
+  const int passed = valid & ~_mm_movemask_ps(_mm_or_ps(_mm_cmple_ps(ts, zero), _mm_cmpgt_ps(ts, tmd)));
   if (passed == 0) return 0;
   WC(t_pass);
   const __m128 inv_det = _mm_div_ps(_mm_set1_ps(1.0f), det);
@@ -222,11 +227,10 @@ __attribute__((always_inline)) inline int intersect_tri4(const Tri4& tri, const 
       _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(g(3), max_e), max_zt), _mm_mul_ps(delta_e, max_zt)),
                  _mm_mul_ps(delta_z, max_e))), abs4(inv_det));
   const __m128 certain = _mm_cmpgt_ps(t, delta_t);
-  valid = _mm_and_ps(valid, _mm_and_ps(certain, _mm_cmplt_ps(t, tmax)));
   t_out = t;
   u_out = _mm_mul_ps(v, inv_det);
   v_out = _mm_mul_ps(w, inv_det);
-  int mask = _mm_movemask_ps(valid);
+  int mask = passed & _mm_movemask_ps(_mm_and_ps(certain, _mm_cmplt_ps(t, tmax)));
   // Lanes positive in float but within the error bound go to the scalar
   // test's double fallback (rare: long thin triangles near the origin). One
   // compare on the hot path: a lane that passed the range test is dropped

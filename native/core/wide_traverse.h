@@ -1,15 +1,16 @@
-// Closest-hit and any-hit traversal of a wide BVH (BVH4 or BVH8) whose leaves
-// are runs of Tri4 blocks: one loop for every width. Each width supplies a
-// Traits struct:
+// Closest-hit and any-hit traversal of a wide BVH whose leaves are runs of
+// Tri4 blocks, for a width given by a Traits struct:
 //   Node, Ray                      node and per-ray constant types
 //   kStackSize                     traversal stack entries
 //   test(node, ray, dist) -> mask  slab test of the children, entry distances in dist
 //   tri_tmax(ray) -> __m128        current tmax for the triangle test
 //   set_tmax(ray, t)               shrink the ray after a hit
 //   prefetch(base, ref)            fetch a child node's cache lines
-// Included after simd_tri4.h by bvh4.cpp (SSE2) and bvh8_avx2.cpp (inside its
-// AVX2 target region), so each width compiles for its own instruction set;
-// everything here has internal linkage.
+// The SSE2 BVH4 (bvh4.cpp) runs these loops; the BVH8 kernels have their own
+// (bvh8_traverse.h) and share the stack entry and the node and leaf
+// addressing below. Included after simd_tri4.h inside each file's target
+// region, so each compiles for its own instruction set; everything here has
+// internal linkage.
 #pragma once
 #include "bvh4.h"
 #include "simd_tri4.h"
@@ -28,6 +29,35 @@ inline const Node& wide_node(const char* base, uint32_t ref) {
 }
 inline const Tri4* wide_leaf(const char* base, uint32_t ref) {
   return reinterpret_cast<const Tri4*>(base + size_t(bvh4_leaf_first(ref)) * kBlockUnit);
+}
+
+// Pops the top entry not farther than t_cull (the nearest hit so far,
+// widened as the node tests' far planes) into ref, dropping the farther ones
+// above it; false when the stack runs out.
+inline bool pop_nearer(const WideStackEntry* stack, int& sp, float t_cull, uint32_t& ref) {
+  while (sp > 0) {
+    --sp;
+    if (stack[sp].t <= t_cull) {
+      ref = stack[sp].ref;
+      return true;
+    }
+  }
+  return false;
+}
+
+// The hit of a Tri4 test's nearest lane among `mask` (on equal distances
+// the lower lane, the earlier triangle).
+inline BVH4Hit nearest_hit(const Tri4& tri, int mask, __m128 t, __m128 u, __m128 v) {
+  alignas(16) float ts[4], us[4], vs[4];
+  _mm_store_ps(ts, t);
+  _mm_store_ps(us, u);
+  _mm_store_ps(vs, v);
+  int best = __builtin_ctz(mask);
+  for (int m = mask & (mask - 1); m; m &= m - 1) {
+    const int lane = __builtin_ctz(m);
+    if (ts[lane] < ts[best]) best = lane;
+  }
+  return {ts[best], us[best], vs[best], tri.prim[best]};
 }
 
 // base: the tree's arena (WideBVH::base()).
@@ -98,35 +128,19 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
       for (uint32_t b = 0; b < blocks; ++b) {
         WC(blocks);
         __m128 t, u, v;
-        int mask = intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v);
+        const int mask = intersect_tri4(tris[b], ray.tri, Traits::tri_tmax(ray), t, u, v);
         if (mask == 0) continue;
-        alignas(16) float ts[4], us[4], vs[4];
-        _mm_store_ps(ts, t);
-        _mm_store_ps(us, u);
-        _mm_store_ps(vs, v);
-        // Nearest lane; on equal distances the lower lane (earlier triangle) wins.
-        int best = -1;
-        for (int m = mask; m; m &= m - 1) {
-          const int lane = __builtin_ctz(m);
-          if (best < 0 || ts[lane] < ts[best]) best = lane;
-        }
-        t_best = ts[best];
-        hit = {ts[best], us[best], vs[best], tris[b].prim[best]};
+        hit = nearest_hit(tris[b], mask, t, u, v);
+        t_best = hit.t;
         Traits::set_tmax(ray, t_best);
         t_cull = widen_far(t_best);
         found = true;
       }
     }
-    // Pop, skipping entries farther than the nearest hit so far.
-    for (;;) {
-      if (sp == 0) {
-        tmax = t_best;
-        return found;
-      }
-      --sp;
-      if (stack[sp].t <= t_cull) break;
+    if (!pop_nearer(stack, sp, t_cull, ref)) {
+      tmax = t_best;
+      return found;
     }
-    ref = stack[sp].ref;
   }
 }
 
