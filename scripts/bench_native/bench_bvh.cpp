@@ -450,8 +450,8 @@ void compare(const Config& cfg) {
               "Tessera's default path on this CPU: %s (%s).\n\n",
               cfg.runs, cpu_simd_level() != SimdLevel::AVX2 ? "sse2" : g_bvh8_avx512 ? "avx512" : "avx2",
               cpu_simd_level() != SimdLevel::AVX2 ? "BVH4, four-wide SSE2 node test"
-              : g_bvh8_avx512 ? "BVH8, the AVX-512 kernel: eight-wide node test into mask registers, in-register child sort"
-                              : "BVH8, eight-wide AVX2 node test");
+              : g_bvh8_avx512 ? "BVH8, the AVX-512 kernel: eight-wide multiply-add node test into mask registers, in-register child sort"
+                              : "BVH8, the AVX2 kernel: eight-wide multiply-add node test, in-register child sort");
   std::string build_table =
       "| mesh | triangles | threads | Tessera build ms | Embree build ms | ratio | Tessera SAH (binary) | Tessera SAH (wide) | Tessera MB | Embree MB |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
