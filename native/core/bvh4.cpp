@@ -40,6 +40,7 @@ struct Ray4 {
     tmax = _mm_set1_ps(t);
     tmax_far = _mm_set1_ps(widen_far(t));
   }
+  float cull_t() const { return _mm_cvtss_f32(tmax_far); }  // widen_far(tmax), made by set_tmax
 };
 
 // Slab test of the ray against the four child boxes: intersect_box's
@@ -81,6 +82,7 @@ struct Bvh4Traits {
   }
   static __m128 tri_tmax(const Ray& r) { return r.tmax; }
   static void set_tmax(Ray& r, float t) { r.set_tmax(t); }
+  static float cull_t(const Ray& r) { return r.cull_t(); }
   static void prefetch(const char* base, uint32_t ref) {
     const char* p = base + size_t(ref) * kNodeUnit;
     _mm_prefetch(p, _MM_HINT_T0);

@@ -115,6 +115,7 @@ struct Ray8x {
     tmax8_far = _mm256_set1_ps(widen_far(t));
     tmax4 = _mm_set1_ps(t);
   }
+  float cull_t() const { return _mm256_cvtss_f32(tmax8_far); }  // widen_far(tmax), made by set_tmax
 };
 
 // The triangle test's constants (shear), made at the first leaf: most
@@ -295,7 +296,7 @@ bool intersect8x(const char* base, Ray8x& ray, LazyTriRay4<Isa>& tri, float& tma
   // Popped entries are skipped against t_best widened as the node test's far
   // planes (widen_far), so that a child is dropped only where the node test
   // with the current t_best would drop it.
-  float t_cull = widen_far(tmax);
+  float t_cull = ray.cull_t();
   const __m256i lane_ids = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   // The root first, by the subtract-then-multiply form (from the origins,
   // no c), outside the loop (see root_test).
@@ -374,7 +375,7 @@ bool intersect8x(const char* base, Ray8x& ray, LazyTriRay4<Isa>& tri, float& tma
       }
     } else if (leaf_intersect<Isa>(base, ref, ray, tri, t_best, hit)) {
       found = true;
-      t_cull = _mm256_cvtss_f32(ray.tmax8_far);  // widen_far(t_best), made by set_tmax
+      t_cull = ray.cull_t();
     }
     if (!pop_nearer(stack, sp, t_cull, ref)) {
       tmax = t_best;

@@ -5,6 +5,7 @@
 //   test(node, ray, dist) -> mask  slab test of the children, entry distances in dist
 //   tri_tmax(ray) -> __m128        current tmax for the triangle test
 //   set_tmax(ray, t)               shrink the ray after a hit
+//   cull_t(ray) -> float           tmax widened as the far planes (widen_far)
 //   prefetch(base, ref)            fetch a child node's cache lines
 // The SSE2 BVH4 (bvh4.cpp) runs these loops; the BVH8 kernels have their own
 // (bvh8_traverse.h) and share the stack entry and the node and leaf
@@ -72,7 +73,7 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
   // Popped entries are skipped against t_best widened as the node test's far
   // planes (widen_far), so that a child is dropped only where the node test
   // with the current t_best would drop it.
-  float t_cull = widen_far(tmax);
+  float t_cull = Traits::cull_t(ray);
   for (;;) {
     if (!bvh4_is_leaf(ref)) {
       const auto& n = wide_node<typename Traits::Node>(base, ref);
@@ -133,7 +134,7 @@ bool wide_intersect(const char* base, typename Traits::Ray& ray, float& tmax, BV
         hit = nearest_hit(tris[b], mask, t, u, v);
         t_best = hit.t;
         Traits::set_tmax(ray, t_best);
-        t_cull = widen_far(t_best);
+        t_cull = Traits::cull_t(ray);
         found = true;
       }
     }
