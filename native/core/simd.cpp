@@ -26,7 +26,8 @@ static bool detect_avx512() {
   const char* env = std::getenv("TESSERA_SIMD");
   if (env && (std::strcmp(env, "avx2") == 0 || std::strcmp(env, "AVX2") == 0)) return false;
 #if defined(__x86_64__) || defined(__i386__)
-  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("fma") &&
+  // FMA comes with the AVX2 level already.
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
 #else
   return false;

@@ -15,7 +15,7 @@ enum class SimdLevel { SSE2 = 0, AVX2 = 1 };
 SimdLevel cpu_simd_level();
 const char* simd_level_name(SimdLevel level);
 
-// AVX-512 F, VL, DQ, BW and FMA on top of AVX2 (cpu_simd_level() is then AVX2:
+// AVX-512 F, VL, DQ and BW on top of AVX2 and FMA (cpu_simd_level() is then AVX2:
 // same BVH8, the AVX-512 traversal replaces the AVX2 one; see bvh8.h).
 bool cpu_has_avx512();
 
