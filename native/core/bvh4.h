@@ -39,7 +39,9 @@ inline uint32_t bvh4_leaf_blocks(uint32_t ref) { return (ref & 7u) + 1; }
 // multiple of four repeats its last triangle in the spare lanes.
 struct alignas(16) Tri4 {
   float v[3][3][4];
-  uint32_t prim[4];  // leaf-order triangle index (Mesh::tri_verts / prim_ids)
+  uint32_t prim[4];  // leaf-order triangle index (Mesh::prim_ids)
+
+  vec3 vertex(int k, int lane) const { return vec3(v[k][0][lane], v[k][1][lane], v[k][2][lane]); }
 };
 static_assert(sizeof(Tri4) == 160, "Tri4 must stay 160 bytes");
 
@@ -86,6 +88,10 @@ float sah_cost(const BVH4& bvh, const BuildOptions& options = {});
 struct BVH4Hit {
   float t, u, v;
   uint32_t prim;
+  // Where the hit triangle's vertices are: lane `lane` of the Tri4 block
+  // `tri` (shading reads them there; the mesh keeps no other copy).
+  const Tri4* tri;
+  uint32_t lane;
 };
 
 // Closest hit before tmax (tmax shrinks); kOrdered visits children nearest first.

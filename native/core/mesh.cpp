@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <stdexcept>
 
 #include <tbb/parallel_for.h>
 
@@ -46,14 +47,14 @@ TriangleCheck check_triangle(const MeshInput& in, size_t i) {
 }
 
 // The wide BLAS (BVH8 on AVX2 CPUs unless options ask for 4, else BVH4)
-// collapsed from `binary` over mesh.tri_verts in its leaf order.
-void attach_tree(Mesh& mesh, const BVH& binary, const BuildOptions& options) {
+// collapsed from `binary` over `verts` (3 per triangle) in its leaf order.
+void attach_tree(Mesh& mesh, const BVH& binary, const vec3* verts, const BuildOptions& options) {
   const BuildOptions opt = tri4_leaf_options(options);
   if (options.bvh_width != 4 && cpu_simd_level() == SimdLevel::AVX2) {
-    mesh.bvh8 = collapse_to_bvh8(binary, mesh.tri_verts.data(), opt);
+    mesh.bvh8 = collapse_to_bvh8(binary, verts, opt);
     mesh.bvh8.sah_cost = sah_cost(binary, options);
   } else {
-    mesh.bvh = collapse_to_bvh4(binary, mesh.tri_verts.data(), opt);
+    mesh.bvh = collapse_to_bvh4(binary, verts, opt);
     mesh.bvh.sah_cost = sah_cost(binary, options);
   }
 }
@@ -125,7 +126,8 @@ Mesh build_mesh(const MeshInput& in, const BuildOptions& options) {
       for (int k = 0; k < 3; ++k) mesh.tri_verts[3 * i + k] = pos[idx[k]];
     }
   });
-  attach_tree(mesh, binary, options);
+  attach_tree(mesh, binary, mesh.tri_verts.data(), options);
+  BVHArray<vec3>().swap(mesh.tri_verts);  // the Tri4 blocks hold them now
   copy_attributes(mesh, in);
   return mesh;
 }
@@ -207,9 +209,9 @@ void build_mesh_bvh(Mesh& mesh, const BuildOptions& options) {
       for (int k = 0; k < 3; ++k) verts[3 * i + k] = mesh.tri_verts[3 * j + k];
     }
   });
-  mesh.tri_verts.swap(verts);
   mesh.prim_ids.swap(ids);
-  attach_tree(mesh, binary, options);
+  attach_tree(mesh, binary, verts.data(), options);
+  BVHArray<vec3>().swap(mesh.tri_verts);  // the Tri4 blocks hold them now
 }
 
 bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax, MeshHit& hit, TraversalOrder order) {
@@ -217,18 +219,59 @@ bool intersect_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float& tmax,
   if (!mesh.bvh8.empty()) {
     const bool found = order == TraversalOrder::Ordered ? bvh8_intersect_avx2<true>(mesh.bvh8, o, d, tmax, h)
                                                         : bvh8_intersect_avx2<false>(mesh.bvh8, o, d, tmax, h);
-    if (found) hit = {h.t, h.u, h.v, h.prim};
+    if (found) hit = {h.t, h.u, h.v, h.prim, h.tri, h.lane};
     return found;
   }
   const bool found = order == TraversalOrder::Ordered ? bvh4_intersect<true>(mesh.bvh, o, d, tmax, h)
                                                       : bvh4_intersect<false>(mesh.bvh, o, d, tmax, h);
-  if (found) hit = {h.t, h.u, h.v, h.prim};
+  if (found) hit = {h.t, h.u, h.v, h.prim, h.tri, h.lane};
   return found;
 }
 
 bool occluded_mesh(const Mesh& mesh, const vec3& o, const vec3& d, float tmax) {
   if (!mesh.bvh8.empty()) return bvh8_occluded_avx2(mesh.bvh8, o, d, tmax);
   return bvh4_occluded(mesh.bvh, o, d, tmax);
+}
+
+namespace {
+// Every leaf block of a wide tree, its lanes' vertices written at their
+// leaf-order index (the spare lanes repeat a triangle: the same values).
+template <typename Tree>
+void read_leaf_blocks(const Tree& tree, std::vector<vec3>& out) {
+  if (tree.empty()) return;
+  std::vector<uint32_t> stack{0u};
+  while (!stack.empty()) {
+    const auto& n = tree.node(stack.back());
+    stack.pop_back();
+    for (uint32_t c = 0; c < n.num_children; ++c) {
+      const uint32_t ref = n.child[c];
+      if (!bvh4_is_leaf(ref)) {
+        stack.push_back(ref);
+        continue;
+      }
+      const Tri4* blocks = tree.blocks(ref);
+      for (uint32_t b = 0; b < bvh4_leaf_blocks(ref); ++b)
+        for (int lane = 0; lane < 4; ++lane)
+          for (int k = 0; k < 3; ++k) out[3 * size_t(blocks[b].prim[lane]) + k] = blocks[b].vertex(k, lane);
+    }
+  }
+}
+}  // namespace
+
+std::vector<vec3> leaf_order_vertices(const Mesh& mesh) {
+  if (!mesh.tri_verts.empty()) return std::vector<vec3>(mesh.tri_verts.begin(), mesh.tri_verts.end());
+  if (!mesh.prim_ids.empty() && !mesh.has_bvh())
+    throw std::logic_error(
+        "leaf_order_vertices: this mesh's vertices live in the render-space BVH of the scene that merged it at "
+        "commit(); read the scene's meshes before committing it");
+  return leaf_block_vertices(mesh, mesh.prim_ids.size());
+}
+
+std::vector<vec3> leaf_block_vertices(const Mesh& mesh, size_t num_triangles) {
+  std::vector<vec3> out(3 * num_triangles);
+  if (!mesh.bvh8.empty()) read_leaf_blocks(mesh.bvh8, out);
+  else read_leaf_blocks(mesh.bvh, out);
+  return out;
 }
 
 float mesh_sah_cost(const Mesh& mesh) { return mesh.bvh8.empty() ? mesh.bvh.sah_cost : mesh.bvh8.sah_cost; }

@@ -1,8 +1,10 @@
 // A triangle mesh in its own (object) space with its BVH: the bottom level
 // (BLAS) of the two-level acceleration structure. Stored once however many
-// instances use it. Triangle vertices are kept in BVH leaf order, so a leaf is
-// one contiguous run of memory; attributes stay in Blender's triangle order
-// and are reached through prim_ids only when a hit is shaded.
+// instances use it. Once it has a tree, its vertices live only in the tree's
+// Tri4 leaf blocks (in BVH leaf order, a leaf one contiguous run of memory),
+// where traversal tests them and shading reads the hit's; attributes stay in
+// Blender's triangle order and are reached through prim_ids only when a hit
+// is shaded.
 #pragma once
 #include <string>
 #include <vector>
@@ -24,7 +26,11 @@ struct MeshInput {
 };
 
 struct Mesh {
-  BVHArray<vec3> tri_verts;             // 3 per triangle, BVH leaf order (resize leaves them unwritten)
+  // 3 per triangle (resize leaves them unwritten), only while the mesh has
+  // no tree (prepare_mesh): the tree's build moves them into its Tri4
+  // blocks and frees them, and Scene::commit frees those of the meshes it
+  // merged into its render-space BLAS. leaf_order_vertices reads either.
+  BVHArray<vec3> tri_verts;
   std::vector<uint32_t> prim_ids;       // leaf order -> Blender triangle index
   std::vector<uint32_t> material_slots; // Blender order; empty: all slot 0
   std::vector<uint32_t> corner_normals; // Blender order, 3 per triangle, octahedral (octahedral.h); empty: flat
@@ -60,8 +66,18 @@ void build_mesh_bvh(Mesh& mesh, const BuildOptions& options = {});
 
 struct MeshHit {
   float t, u, v;
-  uint32_t prim;  // leaf-order index
+  uint32_t prim;    // leaf-order index
+  const Tri4* tri;  // the vertices: lane `lane` of this leaf block (Tri4::vertex)
+  uint32_t lane;
 };
+
+// The mesh's triangles in leaf order, 3 vertices each: tri_verts, or read
+// back from the tree's leaf blocks (a walk over the tree; for set-up and
+// tests, not per ray).
+std::vector<vec3> leaf_order_vertices(const Mesh& mesh);
+// The tree's leaf blocks alone, for a tree over num_triangles (the merged
+// BLAS keeps no prim_ids).
+std::vector<vec3> leaf_block_vertices(const Mesh& mesh, size_t num_triangles);
 
 // Children visited nearest first (default) or in stored order (for benchmarks).
 enum class TraversalOrder { Ordered, Unordered };

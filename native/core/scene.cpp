@@ -37,6 +37,10 @@ static AABB transform_box(const AABB& b, const mat4& m) {
 
 std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
   std::vector<EmissiveTriangle> out;
+  // Object-space vertices of the meshes with emitters, read once per mesh
+  // however many instances place it: the merged meshes' tri_verts (freed
+  // after this, at the end of commit), the others' from their leaf blocks.
+  std::vector<std::vector<vec3>> verts_of(meshes.size());
   for (uint32_t i = 0; i < instances.size(); ++i) {
     const Instance& inst = instances[i];
     bool any = false;
@@ -44,14 +48,16 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
     if (!any && !materials[0].is_emissive()) continue;
     if (!(inst.visibility & kScatteredRays)) continue;  // no ray it lights would see it (Cycles: not a light)
     const Mesh& mesh = meshes[inst.mesh];
+    std::vector<vec3>& verts = verts_of[inst.mesh];
     for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
       const Material& m = materials[material_of(inst, mesh.slot(mesh.prim_ids[k]))];
       if (!m.is_emissive()) continue;
+      if (verts.empty()) verts = leaf_order_vertices(mesh);
       // Edges from the local-space edges through the linear part of the
       // transform, not as differences of world-space vertices: far from the
       // origin those are rounded to the float spacing there (1/128 at 1e5),
       // which shrank a 0.6-wide light quad's area by 2%, and its light with it.
-      const vec3* v = &mesh.tri_verts[3 * k];
+      const vec3* v = &verts[3 * size_t(k)];
       const glm::mat3 linear(inst.to_world);
       const vec3 p0 = vec3(inst.to_world * vec4(v[0], 1.0f));
       const vec3 e1 = linear * (v[1] - v[0]), e2 = linear * (v[2] - v[0]);
@@ -101,6 +107,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   merged_ = Mesh{};
   merged_owner_.clear();
   num_merged_instances_ = 0;
+  merged_instances_.clear();
   std::vector<uint32_t> uses(meshes.size(), 0);
   for (const Instance& inst : instances) ++uses[inst.mesh];
   std::vector<uint32_t> single;
@@ -121,7 +128,14 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
     tlas_items.insert(tlas_items.end(), single.begin(), single.end());
     return;
   }
-  // Render-space triangles, each instance's in its mesh's leaf order.
+  // Render-space triangles, each instance's in its mesh's leaf order: from
+  // tri_verts (meshes added without a tree, prepare_mesh), or read back
+  // from the leaf blocks of a mesh built with one.
+  std::vector<std::vector<vec3>> read_back(single.size());
+  tbb::parallel_for(size_t(0), single.size(), [&](size_t s) {
+    const Mesh& mesh = meshes[instances[single[s]].mesh];
+    if (mesh.tri_verts.empty()) read_back[s] = leaf_order_vertices(mesh);
+  });
   const size_t n = first.back();
   std::vector<vec3> verts(3 * n);
   std::vector<uint32_t> indices(3 * n);
@@ -130,10 +144,11 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
     const uint32_t i = single[s];
     const Instance& inst = instances[i];
     const Mesh& mesh = meshes[inst.mesh];
+    const vec3* src = read_back[s].empty() ? mesh.tri_verts.data() : read_back[s].data();
     for (size_t k = 0; k < mesh.prim_ids.size(); ++k) {
       const size_t j = first[s] + k;
       for (int c = 0; c < 3; ++c) {
-        const vec3& v = mesh.tri_verts[3 * k + c];
+        const vec3& v = src[3 * k + c];
         verts[3 * j + c] = inst.identity ? v : vec3(inst.to_world * vec4(v, 1.0f));
         indices[3 * j + c] = uint32_t(3 * j + c);
       }
@@ -148,24 +163,52 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   merged_ = build_mesh(in);
   merged_owner_.resize(merged_.prim_ids.size());
   for (size_t j = 0; j < merged_owner_.size(); ++j) merged_owner_[j] = owner[merged_.prim_ids[j]];
-  // The merged tree's Tri4 blocks carry the vertices; shading reads each
-  // instance's own mesh.
-  BVHArray<vec3>().swap(merged_.tri_verts);
+  // The merged tree's Tri4 blocks carry the vertices, which shading reads
+  // there; the attributes stay in each instance's own mesh.
   std::vector<uint32_t>().swap(merged_.prim_ids);
   // The merged meshes' own trees are never walked again: free them, keeping
-  // the bounds (Mesh::bounds) that a later commit() places instances by.
-  for (uint32_t i : single) {
-    Mesh& mesh = meshes[instances[i].mesh];
+  // the bounds (Mesh::bounds). Their object-space vertices, kept or read
+  // back, serve the emitters' set-up and are freed at the end of commit().
+  for (size_t s = 0; s < single.size(); ++s) {
+    Mesh& mesh = meshes[instances[single[s]].mesh];
     const AABB b = mesh.bounds();
     mesh.bvh = BVH4{};
     mesh.bvh8 = BVH8{};
     mesh.bvh.bounds = b;
+    if (mesh.tri_verts.empty()) mesh.tri_verts.assign(read_back[s].begin(), read_back[s].end());
   }
   num_merged_instances_ = single.size();
+  merged_instances_ = std::move(single);
   tlas_items.push_back(kMergedItem);
 }
 
+// A scene committed again: the meshes the last commit merged have their
+// vertices only in the merged BLAS's leaf blocks, placed; they get them
+// back in object space (in double through the instance's inverse: exact for
+// untransformed instances, else to within rounding of the placed vertex),
+// to be merged, or built, again.
+void Scene::restore_merged_vertices() {
+  if (merged_instances_.empty()) return;
+  for (uint32_t i : merged_instances_) {
+    Mesh& mesh = meshes[instances[i].mesh];
+    if (mesh.tri_verts.empty()) mesh.tri_verts.resize(3 * mesh.prim_ids.size());
+  }
+  const std::vector<vec3> placed = leaf_block_vertices(merged_, merged_owner_.size());
+  for (size_t j = 0; j < merged_owner_.size(); ++j) {
+    const MergedOwner& owner = merged_owner_[j];
+    const Instance& inst = instances[owner.instance];
+    const glm::dmat4 to_local = glm::inverse(glm::dmat4(inst.to_world));
+    for (int c = 0; c < 3; ++c) {
+      const vec3& p = placed[3 * j + c];
+      meshes[inst.mesh].tri_verts[3 * size_t(owner.prim) + c] =
+          inst.identity ? p : vec3(to_local * glm::dvec4(glm::dvec3(p), 1.0));
+    }
+  }
+  merged_instances_.clear();
+}
+
 void Scene::commit() {
+  restore_merged_vertices();
   rebase_on_camera();
   tlas_items_.clear();
   merge_single_use_instances(tlas_items_);
@@ -192,6 +235,9 @@ void Scene::commit() {
   AABB b = tlas_.bounds();
   float radius = b.empty() ? 1.0f : 0.5f * glm::length(b.extent());
   light_sampler_.build(lights, collect_emissive_triangles(), &background, std::max(radius, 1e-6f));
+  // The merged meshes' vertices: the merged BLAS's leaf blocks hold them,
+  // placed, and shading reads them there.
+  for (uint32_t id : merged_instances_) BVHArray<vec3>().swap(meshes[instances[id].mesh].tri_verts);
   // The builds' freed scratch (boxes, references, partition buffers, trees
   // merged away) served the builds that followed it in this commit; the
   // render needs none of it, and it is the kernel's again.
@@ -207,7 +253,7 @@ bool Scene::trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, H
     MeshHit mh;
     if (!intersect_mesh(merged_, o, d, tmax, mh)) return false;
     const MergedOwner& owner = merged_owner_[mh.prim];
-    *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim};
+    *hit = {mh.t, mh.u, mh.v, owner.instance, owner.prim, mh.tri, mh.lane, true};
     return true;
   }
   const Instance& inst = instances[id];
@@ -222,7 +268,7 @@ bool Scene::trace_item(uint32_t id, const vec3& o, const vec3& d, float& tmax, H
   if (kAnyHit) return occluded_mesh(mesh, lo, ld, tmax);
   MeshHit mh;
   if (!intersect_mesh(mesh, lo, ld, tmax, mh)) return false;
-  *hit = {mh.t, mh.u, mh.v, id, mh.prim};
+  *hit = {mh.t, mh.u, mh.v, id, mh.prim, mh.tri, mh.lane, false};
   return true;
 }
 
@@ -269,7 +315,8 @@ bool Scene::occluded(const vec3& o, const vec3& d, float tmax) const {
 SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
   const Instance& inst = instances[hit.instance];
   const Mesh& mesh = meshes[inst.mesh];
-  const vec3* v = &mesh.tri_verts[3 * size_t(hit.prim)];
+  // The vertices the ray was tested against, from its leaf block.
+  const vec3 v[3] = {hit.tri->vertex(0, hit.lane), hit.tri->vertex(1, hit.lane), hit.tri->vertex(2, hit.lane)};
   const uint32_t prim_id = mesh.prim_ids[hit.prim];
   const float b0 = 1.0f - hit.u - hit.v;
   // Point from barycentrics, with its error bound (pbrt-v4, 6.8.4).
@@ -283,12 +330,20 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
   }
   if (!inst.identity) {
     const glm::mat3 m(inst.to_world);
-    const glm::mat3 abs_m(glm::abs(m[0]), glm::abs(m[1]), glm::abs(m[2]));
-    const vec3 t(inst.to_world[3]);
-    vec3 pw = m * p + t;
-    err = (1.0f + gamma(3)) * (abs_m * err) + gamma(3) * (abs_m * glm::abs(p) + glm::abs(t));
-    p = pw;
-    ng = inst.normal_to_world * ng;
+    if (hit.render_space) {
+      // Merged: the vertices are already placed. The front is where the
+      // normal transform of the object-space normal points (as for the
+      // instance's own BLAS); the cross product of placed edges is that
+      // times det, so a mirroring transform flips it.
+      if (glm::determinant(m) < 0.0f) ng = -ng;
+    } else {
+      const glm::mat3 abs_m(glm::abs(m[0]), glm::abs(m[1]), glm::abs(m[2]));
+      const vec3 t(inst.to_world[3]);
+      vec3 pw = m * p + t;
+      err = (1.0f + gamma(3)) * (abs_m * err) + gamma(3) * (abs_m * glm::abs(p) + glm::abs(t));
+      p = pw;
+      ng = inst.normal_to_world * ng;
+    }
     ns = inst.normal_to_world * ns;
   }
   SurfaceInteraction si;
@@ -306,7 +361,7 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
     const vec2* uv = &mesh.corner_uvs[3 * size_t(prim_id)];
     si.uv = b0 * uv[0] + hit.u * uv[1] + hit.v * uv[2];
     const Material& m = materials[si.material];
-    if (m.normal_tex.valid()) apply_normal_map(si, m, v, uv, inst);
+    if (m.normal_tex.valid()) apply_normal_map(si, m, v, hit.render_space, uv, inst);
   }
   return si;
 }
@@ -314,14 +369,14 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
 // Tangent-space normal map (Blender's Normal Map node, tangent space): the
 // texel maps [0,1] to [-1,1] along (tangent, bitangent, normal); the tangent
 // follows the UV's u direction across the triangle (pbrt-v4 eq. 6.x, dp/du).
-void Scene::apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,
-                             const Instance& inst) const {
+void Scene::apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, bool render_space,
+                             const vec2* uv, const Instance& inst) const {
   const vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
   const vec3 dp02 = v[0] - v[2], dp12 = v[1] - v[2];
   const float det = duv02.x * duv12.y - duv02.y * duv12.x;
   if (std::abs(det) < 1e-20f) return;
   vec3 dpdu = (duv12.y * dp02 - duv02.y * dp12) / det;
-  if (!inst.identity) dpdu = glm::mat3(inst.to_world) * dpdu;
+  if (!inst.identity && !render_space) dpdu = glm::mat3(inst.to_world) * dpdu;
   vec3 t = dpdu - si.ns * glm::dot(si.ns, dpdu);
   const float len = glm::length(t);
   if (!(len > 0.0f) || !std::isfinite(len)) return;

@@ -36,6 +36,12 @@ struct Hit {
   float u = 0.0f, v = 0.0f;
   uint32_t instance = ~0u;
   uint32_t prim = ~0u;  // leaf order within the instance's mesh
+  // The triangle's vertices: lane `lane` of the Tri4 leaf block `tri`, in
+  // render space if the hit came from the merged BLAS (render_space), else
+  // in the instance's object space.
+  const Tri4* tri = nullptr;
+  uint32_t lane = 0;
+  bool render_space = false;
 };
 
 // What shading needs to know about a hit, in world space.
@@ -137,7 +143,7 @@ class Scene {
   void rebase_on_camera();
   std::vector<EmissiveTriangle> collect_emissive_triangles() const;
   Material textured_material(const Material& m, vec2 uv) const;
-  void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, const vec2* uv,
+  void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, bool render_space, const vec2* uv,
                         const Instance& inst) const;
   float texture_value(const TextureRef& ref, vec2 uv) const;
   void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
@@ -163,6 +169,8 @@ class Scene {
   };
   Mesh merged_;
   std::vector<MergedOwner> merged_owner_;
+  std::vector<uint32_t> merged_instances_;  // their meshes' vertices are merged_'s (restore_merged_vertices)
+  void restore_merged_vertices();
   size_t num_merged_instances_ = 0;
   uint8_t hidden_from_ = 0;  // the ray kinds some TLAS item is hidden from
   LightSampler light_sampler_;

@@ -58,7 +58,7 @@ inline BVH4Hit nearest_hit(const Tri4& tri, int mask, __m128 t, __m128 u, __m128
     const int lane = __builtin_ctz(m);
     if (ts[lane] < ts[best]) best = lane;
   }
-  return {ts[best], us[best], vs[best], tri.prim[best]};
+  return {ts[best], us[best], vs[best], tri.prim[best], &tri, uint32_t(best)};
 }
 
 // base: the tree's arena (WideBVH::base()).

@@ -74,15 +74,30 @@ void check_binary_invariants(const BVH& bvh, const std::vector<AABB>& boxes) {
   for (size_t t = 0; t < boxes.size(); ++t) ASSERT_EQ(seen[t], boxes[t].empty() ? 0 : 1) << "primitive " << t;
 }
 
+// The input's vertices of a mesh's stored triangles, in leaf order (3 each),
+// through prim_ids: what the tree's leaf blocks must hold.
+std::vector<vec3> input_vertices(const Mesh& mesh, const TriangleSoup& s) {
+  std::vector<vec3> v;
+  for (uint32_t id : mesh.prim_ids)
+    for (int j = 0; j < 3; ++j) {
+      const float* p = &s.positions[3 * size_t(s.indices[3 * size_t(id) + j])];
+      v.push_back(vec3(p[0], p[1], p[2]));
+    }
+  return v;
+}
+
 // Mesh BLAS (BVH4 or BVH8): each triangle in exactly one leaf, a leaf is a
-// contiguous range of tri_verts, the Tri4 lanes hold exactly those vertices,
-// boxes nest.
+// contiguous range of leaf order, the Tri4 lanes hold exactly the input's
+// vertices of those triangles, boxes nest; the mesh keeps no other copy.
 template <int N, typename Tree>
-void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
+void check_tree(const Mesh& mesh, const Tree& bvh, const TriangleSoup& s) {
+  const size_t num_triangles = s.num_triangles();
+  const std::vector<vec3> verts = input_vertices(mesh, s);
   ASSERT_FALSE(bvh.empty()) << "N " << N << " w " << mesh.width() << " " << mesh.bvh.num_nodes << " " << mesh.bvh8.num_nodes;
   const size_t arena = bvh.mem.size() * sizeof(BVHLine);
   size_t nodes_seen = 0, blocks_seen = 0;
-  ASSERT_EQ(mesh.tri_verts.size(), 3 * mesh.prim_ids.size());
+  ASSERT_TRUE(mesh.tri_verts.empty()) << "a mesh with a tree keeps its vertices only in the leaf blocks";
+  ASSERT_EQ(leaf_order_vertices(mesh), verts);
   std::vector<int> seen(num_triangles, 0);
   std::vector<std::pair<uint32_t, AABB>> stack{{0u, bvh.bounds}};
   size_t leaves_total = 0;
@@ -117,7 +132,7 @@ void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
           const uint32_t k = t.prim[lane];
           ASSERT_LT(k, mesh.prim_ids.size());
           for (int j = 0; j < 3; ++j) {
-            const vec3& p = mesh.tri_verts[3 * k + j];
+            const vec3& p = verts[3 * k + j];
             ASSERT_EQ(vec3(t.v[j][0][lane], t.v[j][1][lane], t.v[j][2][lane]), p);
             ASSERT_TRUE(glm::all(glm::lessThanEqual(box.lo, p)) && glm::all(glm::lessThanEqual(p, box.hi)))
                 << "triangle outside its leaf box";
@@ -137,13 +152,13 @@ void check_tree(const Mesh& mesh, const Tree& bvh, size_t num_triangles) {
   for (size_t t = 0; t < num_triangles; ++t) ASSERT_EQ(seen[t], 1) << "triangle " << t << " not in exactly one leaf";
 }
 
-void check_invariants(const Mesh& mesh, size_t num_triangles) {
+void check_invariants(const Mesh& mesh, const TriangleSoup& s) {
   if (mesh.width() == 8) {
     ASSERT_TRUE(mesh.bvh.empty()) << "one BLAS per mesh";
-    check_tree<8>(mesh, mesh.bvh8, num_triangles);
+    check_tree<8>(mesh, mesh.bvh8, s);
   } else {
     ASSERT_TRUE(mesh.bvh8.empty()) << "one BLAS per mesh";
-    check_tree<4>(mesh, mesh.bvh, num_triangles);
+    check_tree<4>(mesh, mesh.bvh, s);
   }
 }
 
@@ -164,19 +179,21 @@ struct BruteHit {
   uint32_t prim = ~0u;
 };
 
-BruteHit brute_force(const Mesh& mesh, const vec3& o, const vec3& d) {
+BruteHit brute_force(const std::vector<vec3>& v, const vec3& o, const vec3& d) {
   BruteHit best;
   RayShear sh(d);
-  for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
+  for (uint32_t k = 0; k < v.size() / 3; ++k) {
     TriangleHit h;
-    if (intersect_triangle(mesh.tri_verts[3 * k], mesh.tri_verts[3 * k + 1], mesh.tri_verts[3 * k + 2], o, sh, best.t, h))
+    if (intersect_triangle(v[3 * k], v[3 * k + 1], v[3 * k + 2], o, sh, best.t, h))
       best = {h.t, k};
   }
   return best;
 }
 
-// Compares closest and any hits with brute force for n random rays through the bounds.
-void check_against_brute_force(const Mesh& mesh, size_t n, uint32_t seed) {
+// Compares closest and any hits with brute force over the input's triangles
+// for n random rays through the bounds.
+void check_against_brute_force(const Mesh& mesh, const TriangleSoup& s, size_t n, uint32_t seed) {
+  const std::vector<vec3> verts = input_vertices(mesh, s);
   AABB b = mesh.bounds();
   std::atomic<size_t> mismatches{0}, hits{0};
   tbb::parallel_for(size_t(0), n, [&](size_t i) {
@@ -185,7 +202,7 @@ void check_against_brute_force(const Mesh& mesh, size_t n, uint32_t seed) {
     vec3 o = b.lo + (b.hi - b.lo) * vec3(u(rng), u(rng), u(rng)) * 1.4f - 0.2f * (b.hi - b.lo);
     vec3 target = b.lo + (b.hi - b.lo) * vec3(u(rng), u(rng), u(rng));
     vec3 d = glm::normalize(target - o);
-    BruteHit ref = brute_force(mesh, o, d);
+    BruteHit ref = brute_force(verts, o, d);
     float tmax = kInf;
     MeshHit h;
     bool found = intersect_mesh(mesh, o, d, tmax, h);
@@ -238,7 +255,7 @@ TEST(BVH, InvariantsOnRandomTriangles) {
     for (int w : widths()) {
       Mesh mesh = make_mesh(s, with_width(opt, w));
       EXPECT_EQ(mesh.width(), w);
-      check_invariants(mesh, s.num_triangles());
+      check_invariants(mesh, s);
     }
   }
 }
@@ -247,8 +264,8 @@ TEST(BVH, MillionRandomRaysMatchBruteForce) {
   TriangleSoup s = random_soup(300, 11, 0.3f);
   for (int w : widths()) {
     Mesh mesh = make_mesh(s, with_width({}, w));
-    check_invariants(mesh, s.num_triangles());
-    check_against_brute_force(mesh, 1000000, 1);
+    check_invariants(mesh, s);
+    check_against_brute_force(mesh, s, 1000000, 1);
   }
 }
 
@@ -262,8 +279,8 @@ TEST(BVH, EveryBuilderMatchesBruteForce) {
       TriangleSoup s = random_soup(1000, 3);
       for (int w : widths()) {
         Mesh mesh = make_mesh(s, with_width(opt, w));
-        check_invariants(mesh, s.num_triangles());
-        check_against_brute_force(mesh, 20000, 2);
+        check_invariants(mesh, s);
+        check_against_brute_force(mesh, s, 20000, 2);
       }
     }
   }
@@ -274,8 +291,8 @@ TEST(BVH, SingleTriangleAndTinyMeshes) {
     TriangleSoup s = random_soup(n, 21 + uint32_t(n), 0.5f);
     for (int w : widths()) {
       Mesh mesh = make_mesh(s, with_width({}, w));
-      check_invariants(mesh, n);
-      check_against_brute_force(mesh, 5000, 4);
+      check_invariants(mesh, s);
+      check_against_brute_force(mesh, s, 5000, 4);
     }
   }
 }
@@ -284,8 +301,8 @@ TEST(BVH, RealMeshInvariantsAndBruteForce) {
   TriangleSoup s = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
   for (int w : widths()) {
     Mesh mesh = make_mesh(s, with_width({}, w));
-    check_invariants(mesh, s.num_triangles());
-    check_against_brute_force(mesh, 3000, 5);
+    check_invariants(mesh, s);
+    check_against_brute_force(mesh, s, 3000, 5);
   }
 }
 
@@ -305,7 +322,7 @@ TEST(BVH, InvalidTrianglesAreSkippedNotStored) {
   Mesh mesh = make_mesh(s);
   EXPECT_EQ(mesh.num_skipped_triangles, 3u);
   EXPECT_EQ(mesh.prim_ids.size(), 97u);
-  check_against_brute_force(mesh, 2000, 9);
+  check_against_brute_force(mesh, s, 2000, 9);
 }
 
 // Triangles with two equal corners can never be hit: they are left out of
@@ -325,7 +342,7 @@ TEST(BVH, TrianglesWithTwoEqualCornersAreLeftOutNotReported) {
     EXPECT_EQ(mesh.num_skipped_triangles, 1u);
     EXPECT_EQ(mesh.prim_ids.size(), 97u);
     for (uint32_t id : mesh.prim_ids) EXPECT_TRUE(id != 3 && id != 4 && id != 7);
-    check_against_brute_force(mesh, 2000, 9);
+    check_against_brute_force(mesh, s, 2000, 9);
   }
 }
 
@@ -336,7 +353,7 @@ TEST(BVH, IdenticalTrianglesStayWithinTraversalDepth) {
   for (int i = 0; i < 100000; ++i) s.indices.insert(s.indices.end(), {0, 1, 2});
   Mesh mesh = make_mesh(s);
   EXPECT_LE(mesh.width() == 8 ? mesh.bvh8.depth() : mesh.bvh.depth(), 64);
-  check_invariants(mesh, s.num_triangles());
+  check_invariants(mesh, s);
   float tmax = kInf;
   MeshHit h;
   EXPECT_TRUE(intersect_mesh(mesh, vec3(0.2f, 0.2f, 1), vec3(0, 0, -1), tmax, h));
@@ -504,7 +521,7 @@ TEST(BVH, TreeIndependentOfRetainedMemory) {
     ASSERT_GT(bvh_retained_bytes(), 0u);
     const Mesh reused = make_mesh(s, opt);
     ASSERT_EQ(fresh.prim_ids, reused.prim_ids);
-    ASSERT_EQ(fresh.tri_verts, reused.tri_verts);
+    ASSERT_EQ(leaf_order_vertices(fresh), leaf_order_vertices(reused));
     EXPECT_EQ(mesh_sah_cost(fresh), mesh_sah_cost(reused));
     if (fresh.width() == 8) expect_same_wide_tree(fresh.bvh8, reused.bvh8);
     else expect_same_wide_tree(fresh.bvh, reused.bvh);
@@ -543,7 +560,7 @@ TEST(BVH, PreparedMeshBuildsTheSameTreeAsBuildMesh) {
       EXPECT_EQ(prepared.num_skipped_triangles, direct.num_skipped_triangles);
       EXPECT_EQ(prepared.num_degenerate_triangles, direct.num_degenerate_triangles);
       ASSERT_EQ(prepared.prim_ids, direct.prim_ids) << threads << " threads";
-      ASSERT_EQ(prepared.tri_verts, direct.tri_verts);
+      ASSERT_EQ(leaf_order_vertices(prepared), leaf_order_vertices(direct));
       EXPECT_EQ(mesh_sah_cost(prepared), mesh_sah_cost(direct));
       if (direct.width() == 8) expect_same_wide_tree(prepared.bvh8, direct.bvh8);
       else expect_same_wide_tree(prepared.bvh, direct.bvh);

@@ -186,8 +186,19 @@ static void check_single_use_meshes_share_one_blas(bool prepared) {
   for (int m = 0; m < 5; ++m) EXPECT_FALSE(s.meshes[m].has_bvh()) << "mesh " << m;
   EXPECT_TRUE(s.meshes[5].has_bvh());
 
+  // Each vertex is stored once: the merged meshes' only in the merged
+  // BLAS's leaf blocks (placed), the instanced mesh's in its tree's.
+  for (const Mesh& m : s.meshes) EXPECT_TRUE(m.tri_verts.empty());
+
   const AABB sb = s.bounds();
   size_t hits = 0, differ = 0, rays = 0;
+  struct Found {
+    bool hit;
+    float t;
+    uint32_t instance, tri;
+    vec3 p, ng;
+  };
+  std::vector<std::pair<Ray, Found>> found;
   for (int r = 0; r < 4000; ++r) {
     const vec3 o = sb.center() + 1.5f * glm::length(sb.extent()) * glm::normalize(vec3(u01(rng) - 0.5f, u01(rng) - 0.5f, u01(rng) - 0.5f));
     const vec3 target = sb.lo + sb.extent() * vec3(u01(rng), u01(rng), u01(rng));
@@ -216,9 +227,36 @@ static void check_single_use_meshes_share_one_blas(bool prepared) {
     const uint32_t tri = hit ? s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim] : ~0u;
     if (hit != (best != kInf) || (hit && (h.instance != best_inst || tri != best_tri || std::abs(h.t - best) > 1e-4f * best)))
       ++differ;
+    const Ray ray{o, d, kInf};
+    const SurfaceInteraction si = hit ? s.interaction(ray, h) : SurfaceInteraction{};
+    found.push_back({ray, {hit, h.t, h.instance, tri, si.p, si.ng}});
   }
   EXPECT_GT(hits, rays / 4);
   EXPECT_LE(differ, rays / 500) << differ << " of " << rays << " rays differ from brute force";
+
+  // Committed again (the Python API allows it), the merged meshes get their
+  // vertices back from the merged BLAS: the same hits and shading points to
+  // within rounding (the instances rotate and scale).
+  const size_t bytes = s.memory_bytes();
+  s.commit();
+  EXPECT_EQ(s.num_merged_instances(), 5u);
+  EXPECT_EQ(s.memory_bytes(), bytes);
+  size_t moved = 0;
+  for (const auto& [ray, before] : found) {
+    Hit h;
+    const bool hit = s.intersect(ray, h);
+    ASSERT_EQ(hit, before.hit);
+    if (!hit) continue;
+    const uint32_t tri = s.meshes[s.instances[h.instance].mesh].prim_ids[h.prim];
+    const SurfaceInteraction si = s.interaction(ray, h);
+    moved += h.instance != before.instance || tri != before.tri;
+    if (h.instance == before.instance && tri == before.tri) {
+      EXPECT_NEAR(h.t, before.t, 1e-5f * before.t);
+      EXPECT_LE(glm::length(si.p - before.p), 1e-5f);
+      EXPECT_GT(glm::dot(si.ng, before.ng), 0.9999f);
+    }
+  }
+  EXPECT_LE(moved, found.size() / 1000) << "hits that moved to another triangle after the second commit";
 }
 
 TEST(Instancing, SingleUseMeshesShareOneBLAS) { check_single_use_meshes_share_one_blas(false); }

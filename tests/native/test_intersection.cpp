@@ -225,6 +225,7 @@ TEST(Triangle, Bvh8Avx512KernelEqualsAvx2Kernel) {
   BuildOptions o8;
   o8.bvh_width = 8;
   const Mesh m = build_mesh(in, o8);
+  const std::vector<vec3> tri_verts = leaf_order_vertices(m);  // leaf order, 3 each
   ASSERT_EQ(m.width(), 8);
   std::mt19937 rng(91);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -266,9 +267,9 @@ TEST(Triangle, Bvh8Avx512KernelEqualsAvx2Kernel) {
       const RayShear sh(d);
       float t_ref = kInf;
       int n_hit = 0;
-      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+      for (size_t k = 0; k < tri_verts.size() / 3; ++k) {
         TriangleHit th;
-        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th)) {
+        if (intersect_triangle(tri_verts[3 * k], tri_verts[3 * k + 1], tri_verts[3 * k + 2], o, sh, t_ref, th)) {
           t_ref = th.t;
           ++n_hit;
         }
@@ -311,6 +312,7 @@ TEST(Triangle, Bvh8KernelsFarFromOriginMatchBruteForce) {
     BuildOptions o8;
     o8.bvh_width = 8;
     const Mesh m = build_mesh(in, o8);
+    const std::vector<vec3> tri_verts = leaf_order_vertices(m);  // leaf order, 3 each
     ASSERT_EQ(m.width(), 8);
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -328,9 +330,9 @@ TEST(Triangle, Bvh8KernelsFarFromOriginMatchBruteForce) {
       if (glm::length(d) == 0.0f) continue;
       const RayShear sh(d);
       float t_ref = kInf;
-      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+      for (size_t k = 0; k < tri_verts.size() / 3; ++k) {
         TriangleHit th;
-        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th))
+        if (intersect_triangle(tri_verts[3 * k], tri_verts[3 * k + 1], tri_verts[3 * k + 2], o, sh, t_ref, th))
           t_ref = th.t;
       }
       for (auto [width, avx512] : kernels) {
@@ -441,6 +443,7 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
     BuildOptions opt;
     opt.bvh_width = width;
     const Mesh m = build_mesh(in, opt);
+    const std::vector<vec3> tri_verts = leaf_order_vertices(m);  // leaf order, 3 each
     ASSERT_EQ(m.width(), width);
     int hits = 0, near_miss = 0;
     for (int i = 0; i < 20000; ++i) {
@@ -453,9 +456,9 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
       const vec3 o = target - 2.0f * d;
       const RayShear sh(d);
       float t_ref = kInf;
-      for (size_t k = 0; k < m.tri_verts.size() / 3; ++k) {
+      for (size_t k = 0; k < tri_verts.size() / 3; ++k) {
         TriangleHit th;
-        if (intersect_triangle(m.tri_verts[3 * k], m.tri_verts[3 * k + 1], m.tri_verts[3 * k + 2], o, sh, t_ref, th))
+        if (intersect_triangle(tri_verts[3 * k], tri_verts[3 * k + 1], tri_verts[3 * k + 2], o, sh, t_ref, th))
           t_ref = th.t;
       }
       for (TraversalOrder order : {TraversalOrder::Ordered, TraversalOrder::Unordered}) {
@@ -465,7 +468,7 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
         ASSERT_EQ(f, t_ref != kInf) << i << " width " << width << (avx512 ? " avx512" : "");
         if (!f) continue;
         TriangleHit th;
-        const vec3* v = &m.tri_verts[3 * size_t(h.prim)];
+        const vec3* v = &tri_verts[3 * size_t(h.prim)];
         ASSERT_TRUE(intersect_triangle(v[0], v[1], v[2], o, sh, kInf, th)) << i;
         ASSERT_EQ(h.t, th.t) << i;
         ASSERT_EQ(h.u, th.u) << i;
@@ -481,14 +484,14 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
       // The Tri4 test (SSE2 compilation) against the scalar one, lane by
       // lane, over every block of four triangles (zero lanes included).
       if (width == 4 && i % 10 == 0) {
-        const size_t num = m.tri_verts.size() / 3;
+        const size_t num = tri_verts.size() / 3;
         const TriRay4 r4(o, d);
         for (size_t k = 0; k < num; k += 4) {
           Tri4 blk;
           for (int l = 0; l < 4; ++l) {
             const size_t j = std::min(k + l, num - 1);
             for (int c = 0; c < 3; ++c)
-              for (int a = 0; a < 3; ++a) blk.v[c][a][l] = m.tri_verts[3 * j + c][a];
+              for (int a = 0; a < 3; ++a) blk.v[c][a][l] = tri_verts[3 * j + c][a];
             blk.prim[l] = uint32_t(j);
           }
           __m128 t4, u4, v4;
@@ -498,7 +501,7 @@ TEST(Triangle, ZeroEdgeLanesEqualScalarTestInEveryKernel) {
           for (int l = 0; l < 4; ++l) {
             const size_t j = std::min(k + l, num - 1);
             TriangleHit th;
-            const bool hit = intersect_triangle(m.tri_verts[3 * j], m.tri_verts[3 * j + 1], m.tri_verts[3 * j + 2], o, sh, kInf, th);
+            const bool hit = intersect_triangle(tri_verts[3 * j], tri_verts[3 * j + 1], tri_verts[3 * j + 2], o, sh, kInf, th);
             ASSERT_EQ(bool(mask >> l & 1), hit) << i << " " << j;
             if (hit) {
               ASSERT_EQ(ts[l], th.t) << i << " " << j;

@@ -231,16 +231,17 @@ TEST(Numerics, CornellBoxFarFromTheOrigin) {
     Scene s;
     if (baked) {
       // Geometry stored at 1e5: vertices and camera carry the offset.
-      fixtures::build_cornell_box(s, 24, 24, mat4(1.0f), 1.0f);
+      fixtures::build_cornell_box(s, 24, 24, mat4(1.0f), 1.0f, /*commit=*/false);
       Scene moved;
       // Rebuild with vertices baked at the offset: a translation applied to the
       // instance and then cleared is the same as offsetting each vertex.
       for (const Mesh& m : s.meshes) {
+        const std::vector<vec3> verts = leaf_order_vertices(m);
         std::vector<float> pos;
         std::vector<uint32_t> idx;
         for (size_t t = 0; t < m.prim_ids.size(); ++t)
           for (int k = 0; k < 3; ++k) {
-            vec3 p = m.tri_verts[3 * t + k] + far;
+            vec3 p = verts[3 * t + k] + far;
             pos.insert(pos.end(), {p.x, p.y, p.z});
             idx.push_back(uint32_t(idx.size()));
           }
