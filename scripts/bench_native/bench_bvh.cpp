@@ -337,9 +337,10 @@ RaySets make_rays(const Mesh& mesh, int res, const SceneCamera& camera = {}) {
   shadow.shadow = true;
   random.kind = "random";
   const float eps = 1e-4f * radius;
+  const std::vector<vec3> verts = leaf_order_vertices(mesh);
   for (size_t i = 0; i < primary.size(); ++i) {
     if (ref.t[i] == kInf) continue;
-    const vec3* v = &mesh.tri_verts[3 * size_t(prims[i])];
+    const vec3* v = &verts[3 * size_t(prims[i])];
     vec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
     float len = glm::length(n);
     if (!(len > 0.0f)) continue;
