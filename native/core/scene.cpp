@@ -186,7 +186,9 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
 // vertices only in the merged BLAS's leaf blocks, placed; they get them
 // back in object space (in double through the instance's inverse: exact for
 // untransformed instances, else to within rounding of the placed vertex),
-// to be merged, or built, again.
+// to be merged, or built, again. A triangle the merged build left out
+// (degenerate or not finite once placed) comes back with three zero
+// vertices: degenerate, left out again, as it was never hit or sampled.
 void Scene::restore_merged_vertices() {
   if (merged_instances_.empty()) return;
   for (uint32_t i : merged_instances_) {
