@@ -188,7 +188,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
 // untransformed instances, else to within rounding of the placed vertex),
 // to be merged, or built, again. A triangle the merged build left out
 // (degenerate or not finite once placed) comes back with three zero
-// vertices: degenerate, left out again, as it was never hit or sampled.
+// vertices: degenerate, left out again (no ray could hit it either way).
 void Scene::restore_merged_vertices() {
   if (merged_instances_.empty()) return;
   for (uint32_t i : merged_instances_) {
