@@ -246,25 +246,34 @@ TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
 // not: a one-sided emitter was light-sampled as emitting from its dark side
 // (next-event estimation found nothing below a downward light; MIS left
 // only the BSDF-sampled share).
+// merged: with a second single-use mesh, so that both are merged into the
+// render-space BLAS, whose hits are shaded from the placed vertices (the
+// cross product of placed edges, flipped back by the determinant).
 TEST(LightSampling, MirroredEmitterEmitsFromTheSideItIsShadedWith) {
-  Scene s;
-  Material light;
-  light.emission_front = vec3(1.0f);  // one-sided
-  s.materials.push_back(light);
-  // Local winding (0, 0, -1): the front faces down; mirrored in x.
-  const mat4 mirror = glm::scale(mat4(1.0f), vec3(-1.0f, 1.0f, 1.0f));
-  fixtures::add_quad(s, {-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, 1, mirror);
-  s.commit();
-  // What shading sees: a ray from below hits the front.
-  Ray up{vec3(0.1f, 0.2f, 0.0f), vec3(0.0f, 0.0f, 1.0f)};
-  Hit hit;
-  ASSERT_TRUE(s.intersect(up, hit));
-  ASSERT_FALSE(s.interaction(up, hit).back_face);
-  // Light sampling from a floor point below must then find that light.
-  const vec3 p(0.1f, 0.2f, 0.0f), n(0.0f, 0.0f, 1.0f);
-  const Estimate e = irradiance_by_light_sampling(s.light_sampler(), p, n, 1 << 14);
-  const double exact = polygon_irradiance({{-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}}, p, n);
-  EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
+  for (bool merged : {false, true}) {
+    Scene s;
+    Material light;
+    light.emission_front = vec3(1.0f);  // one-sided
+    s.materials.push_back(light);
+    // Local winding (0, 0, -1): the front faces down; mirrored in x.
+    const mat4 mirror = glm::scale(mat4(1.0f), vec3(-1.0f, 1.0f, 1.0f));
+    fixtures::add_quad(s, {-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, 1, mirror);
+    if (merged) fixtures::add_quad(s, {-0.5f, -0.5f, -5}, {0.5f, -0.5f, -5}, {0.5f, 0.5f, -5}, {-0.5f, 0.5f, -5}, 0);
+    s.commit();
+    ASSERT_EQ(s.num_merged_instances(), merged ? 2u : 0u);
+    // What shading sees: a ray from below hits the front.
+    Ray up{vec3(0.1f, 0.2f, 0.0f), vec3(0.0f, 0.0f, 1.0f)};
+    Hit hit;
+    ASSERT_TRUE(s.intersect(up, hit));
+    const SurfaceInteraction si = s.interaction(up, hit);
+    ASSERT_FALSE(si.back_face) << (merged ? "merged" : "own BLAS");
+    EXPECT_LT(si.ng.z, -0.99f) << (merged ? "merged" : "own BLAS");  // the front faces down
+    // Light sampling from a floor point below must then find that light.
+    const vec3 p(0.1f, 0.2f, 0.0f), n(0.0f, 0.0f, 1.0f);
+    const Estimate e = irradiance_by_light_sampling(s.light_sampler(), p, n, 1 << 14);
+    const double exact = polygon_irradiance({{-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}}, p, n);
+    EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
+  }
 }
 
 namespace {
