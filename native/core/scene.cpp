@@ -18,6 +18,7 @@ uint32_t Scene::add_instance(uint32_t mesh, const mat4& to_world, const std::vec
   inst.to_local = glm::inverse(to_world);
   inst.normal_to_world = glm::transpose(glm::mat3(inst.to_local));
   inst.identity = to_world == mat4(1.0f);
+  inst.mirrored = glm::determinant(glm::mat3(to_world)) < 0.0f;
   inst.material_offset = uint32_t(instance_materials.size());
   inst.num_slots = uint32_t(slot_materials.size());
   instance_materials.insert(instance_materials.end(), slot_materials.begin(), slot_materials.end());
@@ -38,8 +39,8 @@ static AABB transform_box(const AABB& b, const mat4& m) {
 std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
   std::vector<EmissiveTriangle> out;
   // Object-space vertices of the meshes with emitters, read once per mesh
-  // however many instances place it: the merged meshes' tri_verts (freed
-  // after this, at the end of commit), the others' from their leaf blocks.
+  // however many instances place it (the merged meshes' are still there:
+  // release_merged_meshes runs after this).
   std::vector<std::vector<vec3>> verts_of(meshes.size());
   for (uint32_t i = 0; i < instances.size(); ++i) {
     const Instance& inst = instances[i];
@@ -65,7 +66,7 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
       // the local normal) points; the cross product of transformed edges is
       // that times det, so a mirroring transform would flip it.
       vec3 c = glm::cross(e1, e2);
-      if (glm::determinant(linear) < 0.0f) c = -c;
+      if (inst.mirrored) c = -c;
       float len = glm::length(c);
       if (!(len > 0.0f) || !std::isfinite(len) || !is_finite(p0)) continue;
       // The shadow ray's end, tested in the instance's space: as
@@ -166,17 +167,8 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   // The merged tree's Tri4 blocks carry the vertices, which shading reads
   // there; the attributes stay in each instance's own mesh.
   std::vector<uint32_t>().swap(merged_.prim_ids);
-  // The merged meshes' own trees are never walked again: free them, keeping
-  // the bounds (Mesh::bounds). Their object-space vertices, kept or read
-  // back, serve the emitters' set-up and are freed at the end of commit().
-  for (size_t s = 0; s < single.size(); ++s) {
-    Mesh& mesh = meshes[instances[single[s]].mesh];
-    const AABB b = mesh.bounds();
-    mesh.bvh = BVH4{};
-    mesh.bvh8 = BVH8{};
-    mesh.bvh.bounds = b;
-    if (mesh.tri_verts.empty()) mesh.tri_verts.assign(read_back[s].begin(), read_back[s].end());
-  }
+  // The merged meshes' own vertices and trees serve the emitters' set-up
+  // and are freed at the end of commit() (release_merged_meshes).
   num_merged_instances_ = single.size();
   merged_instances_ = std::move(single);
   tlas_items.push_back(kMergedItem);
@@ -209,6 +201,21 @@ void Scene::restore_merged_vertices() {
   merged_instances_.clear();
 }
 
+// The meshes merged into the render-space BLAS: their own trees are never
+// walked and their vertices never read again (the merged BLAS's leaf blocks
+// hold them, placed, and shading reads them there). Freed, keeping the
+// bounds (Mesh::bounds).
+void Scene::release_merged_meshes() {
+  for (uint32_t id : merged_instances_) {
+    Mesh& mesh = meshes[instances[id].mesh];
+    const AABB b = mesh.bounds();
+    mesh.bvh = BVH4{};
+    mesh.bvh8 = BVH8{};
+    mesh.bvh.bounds = b;
+    BVHArray<vec3>().swap(mesh.tri_verts);
+  }
+}
+
 void Scene::commit() {
   restore_merged_vertices();
   rebase_on_camera();
@@ -237,9 +244,7 @@ void Scene::commit() {
   AABB b = tlas_.bounds();
   float radius = b.empty() ? 1.0f : 0.5f * glm::length(b.extent());
   light_sampler_.build(lights, collect_emissive_triangles(), &background, std::max(radius, 1e-6f));
-  // The merged meshes' vertices: the merged BLAS's leaf blocks hold them,
-  // placed, and shading reads them there.
-  for (uint32_t id : merged_instances_) BVHArray<vec3>().swap(meshes[instances[id].mesh].tri_verts);
+  release_merged_meshes();
   // The builds' freed scratch (boxes, references, partition buffers, trees
   // merged away) served the builds that followed it in this commit; the
   // render needs none of it, and it is the kernel's again.
@@ -337,7 +342,7 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
       // normal transform of the object-space normal points (as for the
       // instance's own BLAS); the cross product of placed edges is that
       // times det, so a mirroring transform flips it.
-      if (glm::determinant(m) < 0.0f) ng = -ng;
+      if (inst.mirrored) ng = -ng;
     } else {
       const glm::mat3 abs_m(glm::abs(m[0]), glm::abs(m[1]), glm::abs(m[2]));
       const vec3 t(inst.to_world[3]);

@@ -23,6 +23,9 @@ struct Instance {
   uint32_t material_offset = 0;  // into Scene::instance_materials
   uint32_t num_slots = 0;
   bool identity = true;
+  // The linear part's determinant is negative: the cross product of placed
+  // edges points against the normal transform of the object-space normal.
+  bool mirrored = false;
   // Object Properties > Visibility > Ray Visibility (visibility.h): the ray
   // kinds that see the instance; the others pass it. An instance hidden
   // from any kind keeps its own BLAS (Scene::commit); hidden from every
@@ -171,6 +174,7 @@ class Scene {
   std::vector<MergedOwner> merged_owner_;
   std::vector<uint32_t> merged_instances_;  // their meshes' vertices are merged_'s (restore_merged_vertices)
   void restore_merged_vertices();
+  void release_merged_meshes();
   size_t num_merged_instances_ = 0;
   uint8_t hidden_from_ = 0;  // the ray kinds some TLAS item is hidden from
   LightSampler light_sampler_;
