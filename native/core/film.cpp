@@ -84,7 +84,7 @@ float Film::pixel_error(size_t i) const {
   const int n_a = class_a_count(n);
   if (n_a == 0) return kInf;
   const vec3 full = sum_[i] / float(n), half = sum_a_[i] / float(n_a);
-  const vec3 d = glm::abs(full - half);
+  const vec3 d = abs(full - half);
   const float norm = std::sqrt(std::max(0.0f, full.x + full.y + full.z));
   return (d.x + d.y + d.z) / (1e-4f + norm);
 }

@@ -113,7 +113,7 @@ bool intersect_sphere(const vec3& o, const vec3& d, const vec3& c, float r, floa
 // and the ray's transform into an instance's space (gamma(3) of the world
 // magnitudes each, with a factor 2 for the translation), and q's error.
 float shadow_end_error(const vec3& p, const vec3& q) {
-  return gamma(8) * (max_component(glm::abs(p)) + max_component(glm::abs(q))) * 2.0f;
+  return gamma(8) * (max_component(abs(p)) + max_component(abs(q))) * 2.0f;
 }
 
 // How sample() samples an emissive triangle from the shading point p:
@@ -165,7 +165,7 @@ float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 cor
   // circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
   // it the zero cosine it should have.
   const float h = std::abs(glm::dot(p - t.p0, t.n));
-  if (h <= 1e-5f * std::sqrt(t.area) + 1e-6f * (max_component(glm::abs(p)) + max_component(glm::abs(t.p0)))) return 0.0f;
+  if (h <= 1e-5f * std::sqrt(t.area) + 1e-6f * (max_component(abs(p)) + max_component(abs(t.p0)))) return 0.0f;
   const vec3 a = t.p0 - p, b = a + t.e1, c = a + t.e2;
   const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
   if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;

@@ -25,6 +25,12 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kMachineEps = std::numeric_limits<float>::epsilon() * 0.5f;
 constexpr float gamma(int n) { return (n * kMachineEps) / (1 - n * kMachineEps); }
 
+// |v| per component, by clearing sign bits. glm::abs is written
+// x >= 0 ? x : -x, which g++ must keep as a compare and a branch (the two
+// differ for -0): a misprediction wherever the signs vary, as they do from
+// one shading point to the next.
+inline vec3 abs(const vec3& v) { return vec3(std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)); }
+
 inline float max_component(const vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
 inline int max_dimension(const vec3& v) { return v.x > v.y ? (v.x > v.z ? 0 : 2) : (v.y > v.z ? 1 : 2); }
 inline float average(const vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
@@ -105,7 +111,7 @@ inline float next_float_down(float v) {
 // along the geometric normal n, to the side of w, far enough that a ray
 // leaving it cannot re-hit the same surface (pbrt-v4, 6.8.6).
 inline vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& n, const vec3& w) {
-  float d = glm::dot(glm::abs(n), p_error);
+  float d = glm::dot(abs(n), p_error);
   vec3 offset = d * n;
   if (glm::dot(w, n) < 0) offset = -offset;
   vec3 po = p + offset;

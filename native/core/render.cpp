@@ -52,6 +52,7 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
   const int extra_rays = film_.extra_camera_rays(i);
   const bool keep_le = film_.has_camera_emission();
   const uint64_t rays_before = counters.rays;
+  StreamSeeds path_seeds(uint32_t(px), uint32_t(py), path_stream_seed(options_.seed, extra_rays));
   for (int s = sample_begin; s < sample_end; ++s) {
     // Pixel coordinates are those of the full frame, so a region render
     // reproduces the full render's pixels exactly.
@@ -61,10 +62,10 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
     float transparency = 0.0f;
     float* transparency_out = film_.has_transparency() ? &transparency : nullptr;
     if (!data_passes_.mask()) {
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, nullptr, le_out, rest_out, transparency_out));
+      film_.add(i, s, sample(px, py, s, options_.seed, path_seeds, extra_rays, counters, nullptr, le_out, rest_out, transparency_out));
     } else {
       FirstHit first(data_passes_.mask(), options_.pass_alpha_threshold);
-      film_.add(i, s, sample(px, py, s, options_.seed, extra_rays, counters, &first, le_out, rest_out, transparency_out));
+      film_.add(i, s, sample(px, py, s, options_.seed, path_seeds, extra_rays, counters, &first, le_out, rest_out, transparency_out));
       data_passes_.add(i, first);
     }
     if (keep_le) film_.add_camera_emission(i, le, rest);
@@ -80,10 +81,12 @@ void RenderSession::render_pixel(int px, int py, int sample_end, PathCounters& c
   if (slot < 0) return;
   const int from = film_.replicate_samples(slot), to = film_.count(i);
   if (to <= from) return;
-  for (int k = 0; k < film_.replicate_streams(slot); ++k)
+  for (int k = 0; k < film_.replicate_streams(slot); ++k) {
+    const uint32_t seed = options_.seed + uint32_t(k + 1) * kReplicateSeed;
+    StreamSeeds replicate_seeds(uint32_t(px), uint32_t(py), path_stream_seed(seed, extra_rays));
     for (int s = from; s < to; ++s)
-      film_.add_replicate(slot, k, sample(px, py, s, options_.seed + uint32_t(k + 1) * kReplicateSeed, extra_rays,
-                                          counters, nullptr, nullptr, nullptr));
+      film_.add_replicate(slot, k, sample(px, py, s, seed, replicate_seeds, extra_rays, counters, nullptr, nullptr, nullptr));
+  }
   film_.set_replicate_samples(slot, to);
 }
 
@@ -158,8 +161,9 @@ Ray RenderSession::camera_ray(int px, int py, Sampler& sampler) const {
   return scene_.camera.generate_ray(vec2(px + 0.5f, py + 0.5f) + offset, u_lens);
 }
 
-vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters,
-                           FirstHit* first, vec3* camera_le, vec3* rest, float* transparency) const {
+vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, StreamSeeds& path_seeds, int extra_rays,
+                           PathCounters& counters, FirstHit* first, vec3* camera_le, vec3* rest,
+                           float* transparency) const {
   // Emitter antialiasing: the pixel integral of the path's radiance is that
   // of the emission the camera ray sees first plus that of the rest, and the
   // first term, whose edges against bright lights carry a pixel's error,
@@ -174,7 +178,7 @@ vec3 RenderSession::sample(int px, int py, int s, uint32_t seed, int extra_rays,
   // pixel's are the first n K points of one (0,2)-sequence. A split pixel
   // starts over (choose_camera_rays) with its path's numbers from another
   // stream, apart from the samples that chose to split it.
-  Sampler sampler(uint32_t(px), uint32_t(py), uint32_t(s), extra_rays == 0 ? seed : seed ^ kSplitPathSeed);
+  Sampler sampler(path_seeds, uint32_t(s));  // seed, or seed ^ kSplitPathSeed with extra rays
   const Ray ray = camera_ray(px, py, sampler);
   vec3 le0(0.0f);
   const vec3 L = Li(scene_, ray, sampler, options_, counters, features_, first,

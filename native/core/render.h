@@ -88,9 +88,14 @@ class RenderSession {
   // radiance, its camera emission term averaged over its own and extra_rays
   // more camera rays (emitter antialiasing); camera_le and rest (each if not null) get the
   // path's own camera emission (Li) and the rest of its radiance;
-  // transparency (if not null) the path's (Li).
-  vec3 sample(int px, int py, int s, uint32_t seed, int extra_rays, PathCounters& counters, FirstHit* first,
-              vec3* camera_le, vec3* rest, float* transparency = nullptr) const;
+  // transparency (if not null) the path's (Li). path_seeds: the pixel's
+  // stream for the path, StreamSeeds(px, py, path_stream_seed(seed,
+  // extra_rays)), shared by its samples.
+  vec3 sample(int px, int py, int s, uint32_t seed, StreamSeeds& path_seeds, int extra_rays, PathCounters& counters,
+              FirstHit* first, vec3* camera_le, vec3* rest, float* transparency = nullptr) const;
+  static uint32_t path_stream_seed(uint32_t seed, int extra_rays) {
+    return extra_rays == 0 ? seed : seed ^ kSplitPathSeed;
+  }
   // Emitter antialiasing's choice, between passes: each pixel's extra camera
   // rays per sample from its camera emission statistics (render.cpp);
   // returns the pixels it started over, each with the sample count it had.

@@ -77,6 +77,38 @@ inline uint32_t sobol_dim1_reversed(uint32_t w) {
 // across a stratum's edge (or to 1), breaking the points' stratification.
 inline float u32_to_unit_float(uint32_t x) { return float(x >> 8) * 0x1p-24f; }
 
+// The scrambling seeds of one pixel's stream: per dimension pair, the seed s
+// of the index shuffle and the seeds of its two coordinates' scrambles,
+// hash_combine(s, 1) and hash_combine(s, 2). They depend on the pixel, the
+// seed and the dimension, not on the sample, so all the samples a pixel
+// takes in a pass share them: each is hashed once, on its first use, for
+// the first kCached dimensions (a path of 8 bounces draws 4 a bounce), and
+// later samples read them (three hashes of the ~125 operations a 2D point
+// takes). A deeper dimension is hashed at each use.
+struct StreamSeeds {
+  static constexpr uint32_t kCached = 40;
+  uint32_t pixel_seed;
+  uint32_t cached = 0;  // dimensions 0 .. cached - 1 are in seed[]
+  uint32_t seed[kCached][3];
+
+  StreamSeeds(uint32_t px, uint32_t py, uint32_t seed_)
+      : pixel_seed(hash_combine(hash_combine(hash_u32(seed_), px), py)) {}
+
+  static void hash(uint32_t pixel_seed, uint32_t dimension, uint32_t out[3]) {
+    out[0] = hash_combine(pixel_seed, dimension);
+    out[1] = hash_combine(out[0], 1);
+    out[2] = hash_combine(out[0], 2);
+  }
+  // The seeds of `dimension`, in `scratch` when it is not cached. Dimensions
+  // are drawn in order from 0, so the cached ones are a prefix.
+  const uint32_t* of(uint32_t dimension, uint32_t scratch[3]) {
+    if (dimension < cached) return seed[dimension];
+    uint32_t* out = dimension == cached && cached < kCached ? seed[cached++] : scratch;
+    hash(pixel_seed, dimension, out);
+    return out;
+  }
+};
+
 // Stream for one (pixel, sample): dimension pairs are drawn in order, each
 // pair decorrelated from the others by its own scrambling seed.
 // Each dimension pair: the sample index shuffled, index =
@@ -85,25 +117,41 @@ inline float u32_to_unit_float(uint32_t x) { return float(x >> 8) * 0x1p-24f; }
 // Computed with the reversals that cancel left out: the shuffle's inner
 // reversal of `sample` once per stream, x's two around sobol_dim0, and y's
 // through sobol_dim1_reversed (test Sampler.StreamEqualsTheNestedScrambleDefinition).
+// The seeds come from the pixel's StreamSeeds when the sampler has one
+// (the same numbers: test Sampler.SharedSeedsGiveTheSameStream).
 struct Sampler {
   uint32_t pixel_seed;
   uint32_t sample_reversed;  // reverse_bits(sample index)
   uint32_t dimension = 0;
+  StreamSeeds* seeds = nullptr;
 
   Sampler(uint32_t px, uint32_t py, uint32_t sample_index, uint32_t seed)
       : pixel_seed(hash_combine(hash_combine(hash_u32(seed), px), py)), sample_reversed(reverse_bits(sample_index)) {}
+  // Sample `sample_index` of the pixel whose stream `shared` is.
+  Sampler(StreamSeeds& shared, uint32_t sample_index)
+      : pixel_seed(shared.pixel_seed), sample_reversed(reverse_bits(sample_index)), seeds(&shared) {}
 
   vec2 get_2d() {
-    const uint32_t s = hash_combine(pixel_seed, dimension++);
-    const uint32_t w = laine_karras_permutation(sample_reversed, s);  // the shuffled index, bit-reversed
-    const uint32_t x = reverse_bits(laine_karras_permutation(reverse_bits(w), hash_combine(s, 1)));
-    const uint32_t y = reverse_bits(laine_karras_permutation(sobol_dim1_reversed(w), hash_combine(s, 2)));
+    uint32_t scratch[3];
+    const uint32_t* s = dimension_seeds(scratch);
+    const uint32_t w = laine_karras_permutation(sample_reversed, s[0]);  // the shuffled index, bit-reversed
+    const uint32_t x = reverse_bits(laine_karras_permutation(reverse_bits(w), s[1]));
+    const uint32_t y = reverse_bits(laine_karras_permutation(sobol_dim1_reversed(w), s[2]));
     return vec2(u32_to_unit_float(x), u32_to_unit_float(y));
   }
   float get_1d() {
-    const uint32_t s = hash_combine(pixel_seed, dimension++);
-    const uint32_t w = laine_karras_permutation(sample_reversed, s);
-    return u32_to_unit_float(reverse_bits(laine_karras_permutation(reverse_bits(w), hash_combine(s, 1))));
+    uint32_t scratch[3];
+    const uint32_t* s = dimension_seeds(scratch);
+    const uint32_t w = laine_karras_permutation(sample_reversed, s[0]);
+    return u32_to_unit_float(reverse_bits(laine_karras_permutation(reverse_bits(w), s[1])));
+  }
+
+ private:
+  const uint32_t* dimension_seeds(uint32_t scratch[3]) {
+    const uint32_t d = dimension++;
+    if (seeds) return seeds->of(d, scratch);
+    StreamSeeds::hash(pixel_seed, d, scratch);
+    return scratch;
   }
 };
 

@@ -71,8 +71,8 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
       if (!(len > 0.0f) || !std::isfinite(len) || !is_finite(p0)) continue;
       // The shadow ray's end, tested in the instance's space: as
       // shadow_end_error (lights.cpp) for the local magnitudes.
-      const float local = std::max({max_component(glm::abs(v[0])), max_component(glm::abs(v[1])),
-                                    max_component(glm::abs(v[2]))});
+      const float local = std::max({max_component(abs(v[0])), max_component(abs(v[1])),
+                                    max_component(abs(v[2]))});
       const float stretch = std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
       const float local_error = 2.0f * gamma(8) * local * stretch;
       out.push_back({p0, e1, e2, c / len, 0.5f * len, m.emission_front, m.emission_back, i, k, local_error});
@@ -84,7 +84,7 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
 
 void Scene::rebase_on_camera() {
   const vec3 c(camera.to_world[3]);
-  if (!is_finite(c) || max_component(glm::abs(c)) < kRebaseDistance) return;
+  if (!is_finite(c) || max_component(abs(c)) < kRebaseDistance) return;
   // Differences of floats are exact in double: one rounding to float each.
   auto relative = [&](const vec3& p) { return vec3(glm::dvec3(p) - glm::dvec3(c)); };
   for (Instance& inst : instances) {
@@ -328,7 +328,7 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
   const float b0 = 1.0f - hit.u - hit.v;
   // Point from barycentrics, with its error bound (pbrt-v4, 6.8.4).
   vec3 p = b0 * v[0] + hit.u * v[1] + hit.v * v[2];
-  vec3 err = gamma(7) * (glm::abs(b0 * v[0]) + glm::abs(hit.u * v[1]) + glm::abs(hit.v * v[2]));
+  vec3 err = gamma(7) * (abs(b0 * v[0]) + abs(hit.u * v[1]) + abs(hit.v * v[2]));
   vec3 ng = glm::cross(v[1] - v[0], v[2] - v[0]);
   vec3 ns(0.0f);
   if (!mesh.corner_normals.empty()) {
@@ -344,10 +344,10 @@ SurfaceInteraction Scene::interaction(const Ray& ray, const Hit& hit) const {
       // times det, so a mirroring transform flips it.
       if (inst.mirrored) ng = -ng;
     } else {
-      const glm::mat3 abs_m(glm::abs(m[0]), glm::abs(m[1]), glm::abs(m[2]));
+      const glm::mat3 abs_m(abs(m[0]), abs(m[1]), abs(m[2]));
       const vec3 t(inst.to_world[3]);
       vec3 pw = m * p + t;
-      err = (1.0f + gamma(3)) * (abs_m * err) + gamma(3) * (abs_m * glm::abs(p) + glm::abs(t));
+      err = (1.0f + gamma(3)) * (abs_m * err) + gamma(3) * (abs_m * abs(p) + abs(t));
       p = pw;
       ng = inst.normal_to_world * ng;
     }

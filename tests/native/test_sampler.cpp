@@ -48,6 +48,32 @@ TEST(Sampler, StreamEqualsTheNestedScrambleDefinition) {
     }
 }
 
+// A pixel's samples drawn through one StreamSeeds (render.cpp) give the
+// numbers of samplers that hash every seed: for paths of any length, in any
+// order, past the dimensions it caches, and after a short path left the
+// cache part-filled.
+TEST(Sampler, SharedSeedsGiveTheSameStream) {
+  for (uint32_t pixel = 0; pixel < 3; ++pixel) {
+    StreamSeeds shared(pixel, 5, 7);
+    uint32_t lengths = 0x2468ace1U;
+    for (uint32_t sample : {0U, 9U, 1U, 2U, 1000U, 3U, 65537U, 4U}) {
+      lengths = hash_u32(lengths);
+      const uint32_t dims = sample == 0 ? 3 : lengths % (StreamSeeds::kCached + 20);
+      Sampler own(pixel, 5, sample, 7), cached(shared, sample);
+      for (uint32_t d = 0; d < dims; ++d) {
+        if ((d * 7 + sample) % 3 == 0) {
+          ASSERT_EQ(cached.get_1d(), own.get_1d()) << "sample " << sample << " dim " << d;
+        } else {
+          const vec2 a = cached.get_2d(), b = own.get_2d();
+          ASSERT_EQ(a.x, b.x) << "sample " << sample << " dim " << d;
+          ASSERT_EQ(a.y, b.y) << "sample " << sample << " dim " << d;
+        }
+      }
+    }
+    EXPECT_EQ(shared.cached, StreamSeeds::kCached);
+  }
+}
+
 // The first 2^m samples of every dimension pair of a pixel form a (0, m, 2)-net:
 // each of the 2^m elementary intervals of every shape (2^k by 2^(m-k) cells)
 // holds exactly one point (Burley 2020: shuffled and scrambled Sobol keeps it).
