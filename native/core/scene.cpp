@@ -107,7 +107,6 @@ void Scene::rebase_on_camera() {
 void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   merged_ = Mesh{};
   merged_owner_.clear();
-  num_merged_instances_ = 0;
   merged_instances_.clear();
   std::vector<uint32_t> uses(meshes.size(), 0);
   for (const Instance& inst : instances) ++uses[inst.mesh];
@@ -169,7 +168,6 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   std::vector<uint32_t>().swap(merged_.prim_ids);
   // The merged meshes' own vertices and trees serve the emitters' set-up
   // and are freed at the end of commit() (release_merged_meshes).
-  num_merged_instances_ = single.size();
   merged_instances_ = std::move(single);
   tlas_items.push_back(kMergedItem);
 }

@@ -136,7 +136,7 @@ class Scene {
   size_t num_instanced_triangles() const; // as rendered
   size_t memory_bytes() const;            // triangles, attributes and BVHs
   // Instances whose triangles commit() moved into the merged BLAS (below).
-  size_t num_merged_instances() const { return num_merged_instances_; }
+  size_t num_merged_instances() const { return merged_instances_.size(); }
   double build_seconds = 0.0;
 
  private:
@@ -175,7 +175,6 @@ class Scene {
   std::vector<uint32_t> merged_instances_;  // their meshes' vertices are merged_'s (restore_merged_vertices)
   void restore_merged_vertices();
   void release_merged_meshes();
-  size_t num_merged_instances_ = 0;
   uint8_t hidden_from_ = 0;  // the ray kinds some TLAS item is hidden from
   LightSampler light_sampler_;
 };
