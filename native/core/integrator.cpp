@@ -126,6 +126,15 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   // path scatters (on through transparent surfaces), then that of the lobe
   // it scattered by.
   RayKind kind = kRayCamera;
+  // Russian roulette as Cycles does it (path_state_continuation_probability):
+  // survive with sqrt of the throughput's largest component, weighted up by
+  // its inverse.
+  auto survives_roulette = [&]() {
+    const float survive = std::min(1.0f, std::sqrt(max_component(beta)));
+    if (!(rr_u < survive)) return false;
+    beta /= survive;
+    return true;
+  };
 
   for (int bounce = 0, vertex = 0;; ++vertex) {
     Hit hit;
@@ -172,6 +181,13 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       break;
     }
 
+    // Russian roulette (below) first where the hit cannot emit: a path it
+    // ends needs nothing more of this hit (the same image, without the
+    // interaction and material of hits that end paths).
+    if (rr_pending && !scene.materials[scene.material_index(hit)].is_emissive()) {
+      rr_pending = false;
+      if (!survives_roulette()) break;
+    }
     const SurfaceInteraction si = scene.interaction(ray, hit);
     MaterialScratch textured;
     const Material& material = scene.material_at(si, textured);
@@ -188,9 +204,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
     if (rr_pending) {
       rr_pending = false;
-      const float survive = std::min(1.0f, std::sqrt(max_component(beta)));
-      if (!(rr_u < survive)) break;
-      beta /= survive;
+      if (!survives_roulette()) break;
     }
     // As Cycles' PATH_RAY_TERMINATE_ON_NEXT_SURFACE after the last transparent bounce.
     if (transparent_bounces > 0 && transparent_bounces >= options.max_transparent_bounces) break;

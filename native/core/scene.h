@@ -117,6 +117,12 @@ class Scene {
   // Shadow rays: instances with Shadow visibility off are passed.
   bool occluded(const vec3& o, const vec3& d, float tmax) const;
   SurfaceInteraction interaction(const Ray& ray, const Hit& hit) const;
+  // The material of the hit triangle, without the rest of the interaction.
+  uint32_t material_index(const Hit& hit) const {
+    const Instance& inst = instances[hit.instance];
+    const Mesh& mesh = meshes[inst.mesh];
+    return material_of(inst, mesh.slot(mesh.prim_ids[hit.prim]));
+  }
   // The material parameters at a hit, textures applied.
   Material material_at(const SurfaceInteraction& si) const {
     const Material& m = materials[si.material];
