@@ -11,15 +11,18 @@ PRESETS = {
     'PREVIEW': dict(samples=32, adaptive_threshold=0.1, adaptive_min_samples=8, max_bounces=4,
                     max_diffuse_bounces=2, max_glossy_bounces=2, max_transmission_bounces=4,
                     max_transparent_bounces=8,
-                    rr_depth=2, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
+                    rr_depth=2, clamp_direct=0.0, clamp_indirect=10.0, diffuse_texture_blur=1 / 32,
+                    time_limit=0.0, error_target=0.0),
     'PRODUCTION': dict(samples=1024, adaptive_threshold=0.01, adaptive_min_samples=0, max_bounces=12,
                        max_diffuse_bounces=4, max_glossy_bounces=4, max_transmission_bounces=12,
                        max_transparent_bounces=8,
-                       rr_depth=3, clamp_direct=0.0, clamp_indirect=10.0, time_limit=0.0, error_target=0.0),
+                       rr_depth=3, clamp_direct=0.0, clamp_indirect=10.0, diffuse_texture_blur=1 / 64,
+                       time_limit=0.0, error_target=0.0),
     'REFERENCE': dict(samples=16384, adaptive_threshold=0.0, adaptive_min_samples=0, max_bounces=64,
                       max_diffuse_bounces=64, max_glossy_bounces=64, max_transmission_bounces=64,
                       max_transparent_bounces=64,
-                      rr_depth=8, clamp_direct=0.0, clamp_indirect=0.0, time_limit=0.0, error_target=0.0),
+                      rr_depth=8, clamp_direct=0.0, clamp_indirect=0.0, diffuse_texture_blur=0.0,
+                      time_limit=0.0, error_target=0.0),
 }
 
 
@@ -39,7 +42,7 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         items=[('CUSTOM', "Custom", "Settings as set by hand"),
                ('PREVIEW', "Preview", "Fast and noisy: 32 samples, adaptive (threshold 0.1), 4 bounces, indirect clamp 10"),
                ('PRODUCTION', "Production", "Up to 1024 samples, adaptive (threshold 0.01), Cycles' default bounces, indirect clamp 10"),
-               ('REFERENCE', "Reference", "Unbiased: 16384 uniform samples, 64 bounces, no clamping")],
+               ('REFERENCE', "Reference", "Unbiased: 16384 uniform samples, 64 bounces, no clamping, no texture blur")],
         default='CUSTOM', update=_preset_update)
     samples: IntProperty(
         name="Samples", description="Number of samples per pixel (the most any pixel gets with adaptive sampling, "
@@ -92,6 +95,13 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
     clamp_indirect: FloatProperty(
         name="Indirect Light", description="Clamp a sample's indirect light to this largest component; 0 disables",
         default=0.0, min=0.0)
+    diffuse_texture_blur: FloatProperty(
+        name="Diffuse Texture Blur", description="After a diffuse bounce, image textures that drive the surface "
+        "(color, metallic, roughness) are read box-filtered over this fraction of the image's width and height, "
+        "as with Cycles' texture cache: such paths average over much more of the surface anyway, and the small "
+        "blurred copy stays in the CPU's cache. What the camera sees "
+        "directly and through glossy or glass bounces keeps every texel. 0 disables",
+        default=1 / 64, min=0.0, max=1.0, soft_max=0.1, precision=4, step=0.1)
     seed: IntProperty(
         name="Seed", description="Seed of the per-pixel random numbers; the same seed gives the same image",
         default=0, min=0)

@@ -66,6 +66,7 @@ class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
         col = layout.column(align=True, heading="Clamping")
         col.prop(settings, "clamp_direct")
         col.prop(settings, "clamp_indirect")
+        layout.prop(settings, "diffuse_texture_blur")
         layout.prop(settings, "rr_depth")
 
 

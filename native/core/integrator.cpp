@@ -190,7 +190,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     }
     const SurfaceInteraction si = scene.interaction(ray, hit);
     MaterialScratch textured;
-    const Material& material = scene.material_at(si, textured);
+    const Material& material = scene.material_at(si, textured, kind_bounces[BSDFSample::kDiffuse] > 0);
     const vec3 le = material.emission(si.back_face);
     if (first && !first->complete()) first->surface(ray, hit.t, si, material, le);
     if (camera_le && vertex == 0) *camera_le += clamped(le, options.clamp_direct);

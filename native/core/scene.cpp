@@ -400,19 +400,22 @@ void Scene::apply_normal_map(SurfaceInteraction& si, const Material& m, const ve
   if (is_finite(n)) si.ns = n;
 }
 
-float Scene::texture_value(const TextureRef& ref, vec2 uv) const {
-  const vec4 c = textures[ref.texture].eval(uv);
+float Scene::texture_value(const TextureRef& ref, vec2 uv, bool after_diffuse) const {
+  const vec4 c = textures[ref.texture].eval(uv, after_diffuse);
   return ref.channel == 1 ? c.w : luminance(vec3(c));
 }
 
-Material Scene::textured_material(const Material& base, vec2 uv) const {
+// The BSDF's inputs blur after a diffuse bounce; alpha (cut-outs, which
+// shadow rays test at full resolution) and emission (which light sampling
+// evaluates at full resolution, and MIS weighs against it) do not.
+Material Scene::textured_material(const Material& base, vec2 uv, bool after_diffuse) const {
   Material m = base;
   if (m.base_color_tex.valid()) {
-    const vec4 c = textures[m.base_color_tex.texture].eval(uv);
+    const vec4 c = textures[m.base_color_tex.texture].eval(uv, after_diffuse);
     m.base_color = m.base_color_tex.channel == 1 ? vec3(c.w) : vec3(c);
   }
-  if (m.metallic_tex.valid()) m.metallic = texture_value(m.metallic_tex, uv);
-  if (m.roughness_tex.valid()) m.roughness = texture_value(m.roughness_tex, uv);
+  if (m.metallic_tex.valid()) m.metallic = texture_value(m.metallic_tex, uv, after_diffuse);
+  if (m.roughness_tex.valid()) m.roughness = texture_value(m.roughness_tex, uv, after_diffuse);
   if (m.alpha_tex.valid()) m.alpha = texture_value(m.alpha_tex, uv);  // per texel: cut-outs
   if (m.emission_tex.valid()) {
     const vec4 c = textures[m.emission_tex.texture].eval(uv);

@@ -130,10 +130,12 @@ class Scene {
   }
   // The same without copying (a Material with its closure list is ~760
   // bytes): the stored material, or the textured copy made in `scratch`.
-  const Material& material_at(const SurfaceInteraction& si, MaterialScratch& scratch) const {
+  // after_diffuse: the path has scattered diffusely, so the BSDF's textured
+  // inputs come from the textures' blurred levels (Texture::coarse).
+  const Material& material_at(const SurfaceInteraction& si, MaterialScratch& scratch, bool after_diffuse = false) const {
     const Material& m = materials[si.material];
     if (!m.has_textures()) return m;
-    return *new (scratch.bytes) Material(textured_material(m, si.uv));
+    return *new (scratch.bytes) Material(textured_material(m, si.uv, after_diffuse));
   }
 
   const LightSampler& light_sampler() const { return light_sampler_; }
@@ -151,10 +153,10 @@ class Scene {
   }
   void rebase_on_camera();
   std::vector<EmissiveTriangle> collect_emissive_triangles() const;
-  Material textured_material(const Material& m, vec2 uv) const;
+  Material textured_material(const Material& m, vec2 uv, bool after_diffuse = false) const;
   void apply_normal_map(SurfaceInteraction& si, const Material& m, const vec3* v, bool render_space, const vec2* uv,
                         const Instance& inst) const;
-  float texture_value(const TextureRef& ref, vec2 uv) const;
+  float texture_value(const TextureRef& ref, vec2 uv, bool after_diffuse = false) const;
   void merge_single_use_instances(std::vector<uint32_t>& tlas_items);
   bool intersect_visible(const Ray& ray, Hit& hit, RayKind kind) const;
   // kMasked: skips the instances hidden from rays of kind `kind`.

@@ -49,34 +49,99 @@ vec4 Texture::average() const {
 }
 
 
-vec4 Texture::texel(int x, int y) const {
-  switch (extension) {
-    case Extension::Repeat:
+namespace {
+// The index of texel (x, y) of a w x h grid under extension mode e; -1 where
+// Clip leaves the image.
+inline long texel_index(int x, int y, int w, int h, Texture::Extension e) {
+  switch (e) {
+    case Texture::Extension::Repeat:
       // Integer division only off the image: eval() brings uv into [0, 1),
       // so nearly every texel is inside already (four divisions per texel,
       // sixteen per bilinear lookup, were most of the texture time).
-      if (uint32_t(x) >= uint32_t(width)) x = ((x % width) + width) % width;
-      if (uint32_t(y) >= uint32_t(height)) y = ((y % height) + height) % height;
+      if (uint32_t(x) >= uint32_t(w)) x = ((x % w) + w) % w;
+      if (uint32_t(y) >= uint32_t(h)) y = ((y % h) + h) % h;
       break;
-    case Extension::Mirror: {
+    case Texture::Extension::Mirror: {
       auto mirror = [](int i, int n) {
         int period = 2 * n;
         i = ((i % period) + period) % period;
         return i < n ? i : period - 1 - i;
       };
-      x = mirror(x, width);
-      y = mirror(y, height);
+      x = mirror(x, w);
+      y = mirror(y, h);
       break;
     }
-    case Extension::Extend:
-      x = std::clamp(x, 0, width - 1);
-      y = std::clamp(y, 0, height - 1);
+    case Texture::Extension::Extend:
+      x = std::clamp(x, 0, w - 1);
+      y = std::clamp(y, 0, h - 1);
       break;
-    case Extension::Clip:
-      if (x < 0 || y < 0 || x >= width || y >= height) return vec4(0.0f);
+    case Texture::Extension::Clip:
+      if (x < 0 || y < 0 || x >= w || y >= h) return -1;
       break;
   }
-  return texel_at(size_t(y) * width + x);
+  return long(y) * w + x;
+}
+
+// uv's position on a w x h grid, with the texel centres at half-integers;
+// uv already in [0, 1) for Repeat.
+inline vec2 grid_position(vec2 uv, int w, int h) { return vec2(uv.x * w, uv.y * h); }
+
+// Bilinear interpolation of texel(x, y) around grid position p.
+template <class Texel>
+inline vec4 bilinear(vec2 p, const Texel& texel) {
+  const float fx = p.x - 0.5f, fy = p.y - 0.5f;
+  const int ix = int(std::floor(fx)), iy = int(std::floor(fy));
+  const float tx = fx - ix, ty = fy - iy;
+  return (1 - ty) * ((1 - tx) * texel(ix, iy) + tx * texel(ix + 1, iy)) +
+         ty * ((1 - tx) * texel(ix, iy + 1) + tx * texel(ix + 1, iy + 1));
+}
+}  // namespace
+
+vec4 Texture::texel(int x, int y) const {
+  const long i = texel_index(x, y, width, height, extension);
+  return i < 0 ? vec4(0.0f) : texel_at(size_t(i));
+}
+
+void Texture::set_diffuse_blur(float blur) {
+  coarse.clear();
+  coarse_width = coarse_height = 0;
+  if (!(blur > 0.0f) || width <= 0 || height <= 0) return;
+  const int n = int(std::min(std::ceil(1.0f / std::min(blur, 1.0f)), 65536.0f));
+  if (n >= width && n >= height) return;  // no coarser than the image
+  const int cw = std::min(n, width), ch = std::min(n, height);
+  coarse.resize(size_t(cw) * size_t(ch));
+  // Coarse texel (cx, cy) covers uv [cx / cw, (cx + 1) / cw) x [cy / ch, (cy + 1) / ch):
+  // it is the mean of the image's texels x in [ceil(cx W / cw), ceil((cx + 1) W / cw)),
+  // likewise in y (at least one each way).
+  auto first = [](int c, int size, int coarse_size) { return int((int64_t(c) * size + coarse_size - 1) / coarse_size); };
+  tbb::parallel_for(tbb::blocked_range<int>(0, ch), [&](const tbb::blocked_range<int>& r) {
+    for (int cy = r.begin(); cy < r.end(); ++cy) {
+      const int y0 = first(cy, height, ch), y1 = std::max(first(cy + 1, height, ch), y0 + 1);
+      for (int cx = 0; cx < cw; ++cx) {
+        const int x0 = first(cx, width, cw), x1 = std::max(first(cx + 1, width, cw), x0 + 1);
+        glm::dvec4 sum(0.0);
+        for (int y = y0; y < std::min(y1, height); ++y)
+          for (int x = x0; x < std::min(x1, width); ++x) sum += glm::dvec4(texel_at(size_t(y) * width + x));
+        const double count = double(std::min(y1, height) - y0) * double(std::min(x1, width) - x0);
+        coarse[size_t(cy) * cw + cx] = vec4(sum / count);
+      }
+    }
+  });
+  coarse_width = cw, coarse_height = ch;
+}
+
+vec4 Texture::eval_coarse(vec2 uv) const {
+  if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) return vec4(0.0f);
+  if (extension == Extension::Clip && (uv.x < 0.0f || uv.x > 1.0f || uv.y < 0.0f || uv.y > 1.0f)) return vec4(0.0f);
+  if (extension == Extension::Repeat) uv -= glm::floor(uv);
+  const vec2 p = grid_position(uv, coarse_width, coarse_height);
+  auto texel = [&](int x, int y) {
+    const long i = texel_index(x, y, coarse_width, coarse_height, extension);
+    return i < 0 ? vec4(0.0f) : coarse[size_t(i)];
+  };
+  // Closest stays closest; Linear and Cubic filter the blurred level linearly.
+  if (interpolation == Interpolation::Closest) return texel(int(std::floor(p.x)), int(std::floor(p.y)));
+  return bilinear(p, texel);
 }
 
 // Catmull-Rom-like cubic B-spline weights as Cycles uses for Cubic (a uniform
@@ -95,15 +160,12 @@ vec4 Texture::eval(vec2 uv) const {
   if (extension == Extension::Clip && (uv.x < 0.0f || uv.x > 1.0f || uv.y < 0.0f || uv.y > 1.0f)) return vec4(0.0f);
   // Keep coordinates small before converting to int (repeat is periodic anyway).
   if (extension == Extension::Repeat) uv -= glm::floor(uv);
-  const float x = uv.x * width, y = uv.y * height;
-  if (interpolation == Interpolation::Closest) return texel(int(std::floor(x)), int(std::floor(y)));
-  const float fx = x - 0.5f, fy = y - 0.5f;
+  const vec2 p = grid_position(uv, width, height);
+  if (interpolation == Interpolation::Closest) return texel(int(std::floor(p.x)), int(std::floor(p.y)));
+  if (interpolation == Interpolation::Linear) return bilinear(p, [this](int x, int y) { return texel(x, y); });
+  const float fx = p.x - 0.5f, fy = p.y - 0.5f;
   const int ix = int(std::floor(fx)), iy = int(std::floor(fy));
   const float tx = fx - ix, ty = fy - iy;
-  if (interpolation == Interpolation::Linear) {
-    return (1 - ty) * ((1 - tx) * texel(ix, iy) + tx * texel(ix + 1, iy)) +
-           ty * ((1 - tx) * texel(ix, iy + 1) + tx * texel(ix + 1, iy + 1));
-  }
   float wx[4], wy[4];
   cubic_weights(tx, wx);
   cubic_weights(ty, wy);

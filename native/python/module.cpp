@@ -284,11 +284,14 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "add_texture",
           [](Scene& s, const Array<float>& pixels, const std::string& interpolation, const std::string& extension,
-             const std::string& bytes) {
+             const std::string& bytes, float diffuse_blur) {
             if (pixels.ndim() != 3 || pixels.shape(2) != 4)
               throw std::invalid_argument("texture pixels must be an array of shape (height, width, 4)");
             if (bytes != "" && bytes != "sRGB" && bytes != "linear")
               throw std::invalid_argument("add_texture: bytes must be '', 'sRGB' or 'linear', not '" + bytes + "'");
+            if (!(diffuse_blur >= 0.0f && diffuse_blur <= 1.0f))
+              throw std::invalid_argument("add_texture: diffuse_blur must be in [0, 1] (a fraction of the image's size; "
+                                          "0 turns it off), not " + std::to_string(diffuse_blur));
             Texture t;
             const int h = int(pixels.shape(0)), w = int(pixels.shape(1));
             if (bytes.empty()) {
@@ -306,14 +309,19 @@ PYBIND11_MODULE(_core, m) {
                         : extension == "CLIP" ? Texture::Extension::Clip
                         : extension == "MIRROR" ? Texture::Extension::Mirror
                         : Texture::Extension::Repeat;
+            {
+              py::gil_scoped_release release;
+              t.set_diffuse_blur(diffuse_blur);
+            }
             s.textures.push_back(std::move(t));
             return s.textures.size() - 1;
           },
           py::arg("pixels"), py::arg("interpolation") = "Linear", py::arg("extension") = "REPEAT",
-          py::arg("bytes") = "",
+          py::arg("bytes") = "", py::arg("diffuse_blur") = 0.0f,
           "Adds an image texture (RGBA, rows bottom to top); returns its index. bytes='': linear floats; "
           "'sRGB' or 'linear': an 8-bit image as Blender reads it back (k / 255), stored as bytes and "
-          "converted per texel from sRGB or as is.")
+          "converted per texel from sRGB or as is. diffuse_blur: what paths see after a diffuse bounce is "
+          "the image box-filtered over this fraction of its size (0: the image itself).")
       .def(
           "texture_average",
           [](const Scene& s, size_t i) {

@@ -26,9 +26,26 @@ def test_presets_set_the_controls(cornell):
     assert t.adaptive_threshold > 0 and t.max_bounces == 4 and t.samples == 32
     t.preset = 'REFERENCE'
     assert t.adaptive_threshold == 0 and t.clamp_indirect == 0 and t.samples >= 4096
+    assert t.diffuse_texture_blur == 0
     import bpy
     bpy.ops.tessera.apply_preset(preset='PRODUCTION')
     assert t.max_diffuse_bounces == 4 and t.clamp_indirect == 10
+    assert t.diffuse_texture_blur == pytest.approx(1 / 64)
+
+
+def test_diffuse_texture_blur_reaches_the_textures_and_keeps_the_mean():
+    # modern_hall's wood, tiles and wallpaper are image textures: with the blur
+    # the paths after a diffuse bounce read their blurred levels, so the image
+    # changes, and its mean does not beyond the noise of 16 samples.
+    hall = open_scene("modern_hall.blend")
+    set_size(hall, 64)
+    images = []
+    for blur in (0.0, 1 / 64):
+        hall.tessera.diffuse_texture_blur = blur
+        images.append(render(hall, 'TESSERA', samples=16, seed=3)[..., :3])
+    sharp, blurred = images
+    assert not np.array_equal(sharp, blurred)
+    assert blurred.mean() == pytest.approx(sharp.mean(), rel=0.01)
 
 
 def test_time_limit_stops_the_render(cornell):

@@ -923,6 +923,132 @@ TEST(Textures, RepeatWrapsAcrossTheSeamsAndTiles) {
   for (int c = 0; c < 4; ++c) EXPECT_NEAR(got[c], expect[c], 1e-4f);
 }
 
+// Diffuse texture blur: the coarse level has ceil(1 / blur) texels across
+// (where the image has more), each the mean of the image's texels under it
+// (sizes that do not divide: [ceil(c W / cw), ceil((c + 1) W / cw))), for
+// float and byte images; lookups after a diffuse bounce read it with the
+// image's extension, and every other lookup is the image's own.
+TEST(Textures, DiffuseBlurLevelIsTheImageBoxFiltered) {
+  const int w = 10, h = 6;
+  std::vector<float> rgba;
+  for (int i = 0; i < w * h; ++i)
+    for (float v : {float(i % 7) / 6.0f, float((3 * i) % 11) / 10.0f, float(i) / float(w * h), 1.0f}) rgba.push_back(v);
+  for (bool bytes : {false, true}) {
+    Texture t;
+    if (bytes) {
+      t.set_bytes(rgba.data(), w, h, true);
+    } else {
+      t.width = w, t.height = h;
+      for (int i = 0; i < w * h; ++i) t.texels.emplace_back(rgba[4 * i], rgba[4 * i + 1], rgba[4 * i + 2], rgba[4 * i + 3]);
+    }
+    auto image = [&](int x, int y) { return t.eval(vec2((x + 0.5f) / w, (y + 0.5f) / h)); };
+    t.interpolation = Texture::Interpolation::Closest;
+    t.set_diffuse_blur(0.25f);  // 4 x 4
+    ASSERT_EQ(t.coarse_width, 4);
+    ASSERT_EQ(t.coarse_height, 4);
+    auto first = [](int c, int n, int cn) { return (c * n + cn - 1) / cn; };
+    for (int cy = 0; cy < 4; ++cy)
+      for (int cx = 0; cx < 4; ++cx) {
+        glm::dvec4 sum(0.0);
+        int count = 0;
+        for (int y = first(cy, h, 4); y < first(cy + 1, h, 4); ++y)
+          for (int x = first(cx, w, 4); x < first(cx + 1, w, 4); ++x, ++count) sum += glm::dvec4(image(x, y));
+        ASSERT_GT(count, 0);
+        const vec2 centre((cx + 0.5f) / 4.0f, (cy + 0.5f) / 4.0f);
+        for (auto interp : {Texture::Interpolation::Closest, Texture::Interpolation::Linear}) {
+          t.interpolation = interp;
+          const vec4 c = t.eval(centre, true);
+          for (int k = 0; k < 4; ++k) EXPECT_NEAR(c[k], sum[k] / count, 1e-6) << cx << "," << cy << " channel " << k;
+          // Repeat: the level tiles as the image does.
+          const vec4 shifted = t.eval(centre + vec2(3.0f, -2.0f), true);
+          for (int k = 0; k < 4; ++k) EXPECT_NEAR(shifted[k], c[k], 1e-6);
+        }
+        t.interpolation = Texture::Interpolation::Closest;
+      }
+    // Lookups that are not after a diffuse bounce read the image itself.
+    for (vec2 uv : {vec2(0.13f, 0.71f), vec2(0.5f, 0.5f), vec2(0.97f, 0.02f)})
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(t.eval(uv, false)[k], t.eval(uv)[k]);
+    // Clip: nothing outside, as the image.
+    t.extension = Texture::Extension::Clip;
+    EXPECT_EQ(t.eval(vec2(1.5f, 0.5f), true), vec4(0.0f));
+    // No level where the blur asks for nothing coarser than the image, or for no blur.
+    for (float blur : {0.0f, 1.0f / 16.0f}) {
+      t.set_diffuse_blur(blur);
+      EXPECT_TRUE(t.coarse.empty()) << blur;
+      EXPECT_EQ(t.eval(vec2(0.37f, 0.61f), true), t.eval(vec2(0.37f, 0.61f))) << blur;
+    }
+    // Coarser in one direction only: 8 across the 10 columns, all 6 rows.
+    t.set_diffuse_blur(1.0f / 8.0f);
+    EXPECT_EQ(t.coarse_width, 8);
+    EXPECT_EQ(t.coarse_height, 6);
+  }
+}
+
+namespace {
+// A textured square (UVs over [0,1]^2) at height z, its base colour a
+// checkerboard of n x n texels, 0.1 and 0.9.
+void add_checker_square(Scene& s, float z, float half, int n, float blur) {
+  std::vector<float> rgba;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x)
+      for (int c = 0; c < 4; ++c) rgba.push_back(c == 3 ? 1.0f : (x + y) % 2 ? 0.9f : 0.1f);
+  Texture t;
+  t.set_bytes(rgba.data(), n, n, false);
+  t.set_diffuse_blur(blur);
+  s.textures.push_back(std::move(t));
+  Material m = with_closures({closure(ClosureKind::Diffuse, 1, vec3(1.0f), 0.0f)});
+  m.base_color_tex = TextureRef{uint32_t(s.textures.size() - 1), 0};
+  const float pos[12] = {-half, -half, z, half, -half, z, half, half, z, -half, half, z};
+  const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+  const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  MeshInput in;
+  in.positions = pos;
+  in.num_vertices = 4;
+  in.indices = idx;
+  in.num_triangles = 2;
+  in.corner_uvs = uv;
+  s.meshes.push_back(build_mesh(in));
+  s.add_instance(uint32_t(s.meshes.size() - 1), mat4(1.0f), {add_material(s, m)});
+}
+}  // namespace
+
+// What the camera sees keeps every texel with the blur on: a checkerboard
+// under a white sky, seen from above (every path: camera, the square, the
+// sky) renders bit for bit as without it. Seen only after a diffuse bounce
+// (the camera looks at a white square, the checkerboard lies above it, facing
+// it, under a sky that lights it from above), the board's fine checks are
+// its blurred level: the image differs, its mean (board mean 0.5 either way)
+// does not, beyond noise.
+TEST(Textures, DiffuseBlurLeavesWhatTheCameraSeesAlone) {
+  RenderOptions opt;
+  opt.samples = 16;
+  std::vector<float> direct[2], indirect[2];
+  for (int blurred = 0; blurred < 2; ++blurred) {
+    const float blur = blurred ? 1.0f / 4.0f : 0.0f;
+    Scene a;
+    add_checker_square(a, 0.0f, 1.0f, 64, blur);
+    a.background.set_color(vec3(1.0f));
+    look_down(a, 2.0f, 1.0f, 24);
+    a.commit();
+    direct[blurred] = render(a, opt);
+
+    Scene b;
+    const Material white = with_closures({closure(ClosureKind::Diffuse, 1, vec3(0.8f), 0.0f)});
+    add_square(b, 0.0f, 1.0f, add_material(b, white));
+    add_checker_square(b, 0.05f, 0.5f, 64, blur);  // between the camera and the white square
+    add_square(b, 0.3f, 0.5f, add_material(b, white));  // a white lid above it: the board is lit from below
+    b.background.set_color(vec3(1.0f));
+    look_down(b, 2.0f, 1.0f, 24);
+    b.commit();
+    indirect[blurred] = render(b, opt);
+  }
+  ASSERT_EQ(direct[0].size(), direct[1].size());
+  EXPECT_EQ(0, std::memcmp(direct[0].data(), direct[1].data(), direct[0].size() * sizeof(float)));
+  EXPECT_NE(0, std::memcmp(indirect[0].data(), indirect[1].data(), indirect[0].size() * sizeof(float)));
+  const vec3 m0 = mean_rgb(indirect[0]), m1 = mean_rgb(indirect[1]);
+  EXPECT_NEAR(m1.x, m0.x, 0.02f * m0.x);
+}
+
 // Film > Transparent (Cycles' PATH_RAY_TRANSPARENT_BACKGROUND): the world the
 // camera sees directly or through transparent surfaces is left out of the
 // image and lowers alpha by the path's weight there; the world still lights

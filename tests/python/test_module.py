@@ -94,6 +94,8 @@ def test_errors_say_what_is_wrong():
         s.add_instance(7, np.eye(4, dtype=np.float32), [])
     with pytest.raises(ValueError, match="unknown light type 'LASER'"):
         s.add_light(type="LASER", position=[0, 0, 0])
+    with pytest.raises(ValueError, match=r"diffuse_blur must be in \[0, 1\]"):
+        s.add_texture(np.ones((4, 4, 4), np.float32), diffuse_blur=-0.5)
     with pytest.raises(ValueError, match="image size must be positive"):
         s.set_camera(type="PERSP", matrix=np.eye(4, dtype=np.float32), left=-1, right=1, bottom=-1, top=1,
                      clip_start=0.1, clip_end=10, width=0, height=10)

@@ -72,7 +72,7 @@ def export_scene(depsgraph, width, height, is_cancelled=lambda: False, camera_ov
             f"(Scene Properties > Camera), or pass one with --python-expr.")
     scene_core.set_camera(**cam)
 
-    mat_cache = materials.MaterialCache(scene_core, report)
+    mat_cache = materials.MaterialCache(scene_core, report, bl_scene.tessera.diffuse_texture_blur)
     mesh_cache = mesh.MeshCache(scene_core, report)
     num_instances = 0
     for inst in depsgraph.object_instances:

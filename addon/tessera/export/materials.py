@@ -114,9 +114,10 @@ def image_texture_node(socket):
 
 
 class MaterialCache:
-    def __init__(self, scene_core, report):
+    def __init__(self, scene_core, report, diffuse_texture_blur=0.0):
         self.scene = scene_core
         self.report = report
+        self.diffuse_texture_blur = diffuse_texture_blur
         self.ids = {}
         self.textured = set()
         self.textures = {}
@@ -154,7 +155,8 @@ class MaterialCache:
             else:
                 # 8-bit images go to the core as bytes, converted there per texel
                 # (in Python the conversion took most of modern_hall's export).
-                index = self.scene.add_texture(px, node.interpolation, node.extension, byte_encoding(img))
+                index = self.scene.add_texture(px, node.interpolation, node.extension, byte_encoding(img),
+                                               self.diffuse_texture_blur)
                 self.textures[key] = index
                 # The material's constant needs the average next: from the core's texels.
                 _image_cache[img.as_pointer()] = self.scene.texture_average(index)
