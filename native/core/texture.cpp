@@ -82,9 +82,17 @@ inline long texel_index(int x, int y, int w, int h, Texture::Extension e) {
   return long(y) * w + x;
 }
 
-// uv's position on a w x h grid, with the texel centres at half-integers;
-// uv already in [0, 1) for Repeat.
-inline vec2 grid_position(vec2 uv, int w, int h) { return vec2(uv.x * w, uv.y * h); }
+// uv's position *p on a w x h grid (texel centres at half-integers) under
+// extension mode e; false where the lookup is 0: a non-finite uv, or off the
+// image under Clip. Repeat first brings uv into [0, 1), keeping coordinates
+// small before they become ints (repeat is periodic anyway).
+inline bool grid_position(vec2 uv, int w, int h, Texture::Extension e, vec2* p) {
+  if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) return false;
+  if (e == Texture::Extension::Clip && (uv.x < 0.0f || uv.x > 1.0f || uv.y < 0.0f || uv.y > 1.0f)) return false;
+  if (e == Texture::Extension::Repeat) uv -= glm::floor(uv);
+  *p = vec2(uv.x * w, uv.y * h);
+  return true;
+}
 
 // Bilinear interpolation of texel(x, y) around grid position p.
 template <class Texel>
@@ -112,17 +120,17 @@ void Texture::set_diffuse_blur(float blur) {
   coarse.resize(size_t(cw) * size_t(ch));
   // Coarse texel (cx, cy) covers uv [cx / cw, (cx + 1) / cw) x [cy / ch, (cy + 1) / ch):
   // it is the mean of the image's texels x in [ceil(cx W / cw), ceil((cx + 1) W / cw)),
-  // likewise in y (at least one each way).
+  // likewise in y: at least one each way and inside the image, as cw <= W and ch <= H.
   auto first = [](int c, int size, int coarse_size) { return int((int64_t(c) * size + coarse_size - 1) / coarse_size); };
   tbb::parallel_for(tbb::blocked_range<int>(0, ch), [&](const tbb::blocked_range<int>& r) {
     for (int cy = r.begin(); cy < r.end(); ++cy) {
-      const int y0 = first(cy, height, ch), y1 = std::max(first(cy + 1, height, ch), y0 + 1);
+      const int y0 = first(cy, height, ch), y1 = first(cy + 1, height, ch);
       for (int cx = 0; cx < cw; ++cx) {
-        const int x0 = first(cx, width, cw), x1 = std::max(first(cx + 1, width, cw), x0 + 1);
+        const int x0 = first(cx, width, cw), x1 = first(cx + 1, width, cw);
         glm::dvec4 sum(0.0);
-        for (int y = y0; y < std::min(y1, height); ++y)
-          for (int x = x0; x < std::min(x1, width); ++x) sum += glm::dvec4(texel_at(size_t(y) * width + x));
-        const double count = double(std::min(y1, height) - y0) * double(std::min(x1, width) - x0);
+        for (int y = y0; y < y1; ++y)
+          for (int x = x0; x < x1; ++x) sum += glm::dvec4(texel_at(size_t(y) * width + x));
+        const double count = double(y1 - y0) * double(x1 - x0);
         coarse[size_t(cy) * cw + cx] = vec4(sum / count);
       }
     }
@@ -131,10 +139,8 @@ void Texture::set_diffuse_blur(float blur) {
 }
 
 vec4 Texture::eval_coarse(vec2 uv) const {
-  if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) return vec4(0.0f);
-  if (extension == Extension::Clip && (uv.x < 0.0f || uv.x > 1.0f || uv.y < 0.0f || uv.y > 1.0f)) return vec4(0.0f);
-  if (extension == Extension::Repeat) uv -= glm::floor(uv);
-  const vec2 p = grid_position(uv, coarse_width, coarse_height);
+  vec2 p;
+  if (!grid_position(uv, coarse_width, coarse_height, extension, &p)) return vec4(0.0f);
   auto texel = [&](int x, int y) {
     const long i = texel_index(x, y, coarse_width, coarse_height, extension);
     return i < 0 ? vec4(0.0f) : coarse[size_t(i)];
@@ -156,11 +162,8 @@ static void cubic_weights(float t, float w[4]) {
 
 vec4 Texture::eval(vec2 uv) const {
   if (width <= 0 || height <= 0) return vec4(1.0f, 0.0f, 1.0f, 1.0f);  // Blender's missing-image pink
-  if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) return vec4(0.0f);
-  if (extension == Extension::Clip && (uv.x < 0.0f || uv.x > 1.0f || uv.y < 0.0f || uv.y > 1.0f)) return vec4(0.0f);
-  // Keep coordinates small before converting to int (repeat is periodic anyway).
-  if (extension == Extension::Repeat) uv -= glm::floor(uv);
-  const vec2 p = grid_position(uv, width, height);
+  vec2 p;
+  if (!grid_position(uv, width, height, extension, &p)) return vec4(0.0f);
   if (interpolation == Interpolation::Closest) return texel(int(std::floor(p.x)), int(std::floor(p.y)));
   if (interpolation == Interpolation::Linear) return bilinear(p, [this](int x, int y) { return texel(x, y); });
   const float fx = p.x - 0.5f, fy = p.y - 0.5f;
