@@ -135,9 +135,13 @@ struct EmbreeScene {
   }
 };
 
-void embree_build(RTCDevice device, const TriangleSoup& s, EmbreeScene& es) {
+// robust: RTC_SCENE_FLAG_ROBUST, Embree's mode without the optimisations
+// that cost accuracy (conservative box test, edge tests that do not let
+// rays through shared edges): the guarantee Tessera's traversal always gives.
+void embree_build(RTCDevice device, const TriangleSoup& s, EmbreeScene& es, bool robust = false) {
   es.release();
   es.scene = rtcNewScene(device);
+  if (robust) rtcSetSceneFlags(es.scene, RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(es.scene, RTC_BUILD_QUALITY_MEDIUM);
   RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
   rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_MEDIUM);
@@ -457,8 +461,8 @@ void compare(const Config& cfg) {
       "| mesh | triangles | threads | Tessera build ms | Embree build ms | ratio | Tessera SAH (binary) | Tessera SAH (wide) | Tessera MB | Embree MB |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   std::string trace_table =
-      "| mesh | ray kind | rays | threads | Tessera Mrays/s | Tessera SSE2 BVH4 Mrays/s | Embree Mrays/s | ratio | ratio SSE2 | agreement |\n"
-      "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+      "| mesh | ray kind | rays | threads | Tessera Mrays/s | Tessera SSE2 BVH4 Mrays/s | Embree Mrays/s | Embree robust Mrays/s | ratio | ratio SSE2 | ratio robust | agreement |\n"
+      "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   char line[512];
   for (const std::string& path : cfg.meshes) {
     TriangleSoup soup = load_mesh_file(path);
@@ -467,7 +471,7 @@ void compare(const Config& cfg) {
     BuildOptions sse_opt;
     sse_opt.bvh_width = 4; if (getenv("ML")) sse_opt.max_leaf_size = atoi(getenv("ML"));
     const Mesh mesh_sse = tessera_build(soup, sse_opt);
-    std::vector<EmbreeScene> escenes(cfg.threads.size());
+    std::vector<EmbreeScene> escenes(cfg.threads.size()), robust_scenes(cfg.threads.size());
     std::vector<RTCDevice> devices;
     for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
       const int nt = cfg.threads[ti];
@@ -510,18 +514,20 @@ void compare(const Config& cfg) {
                     mesh.memory_bytes() / 1048576.0, ebytes ? fmt_mb(ebytes).c_str() : "-");
       build_table += line;
       std::fprintf(stderr, "%s", line);
+      arena.execute([&] { embree_build(dev, soup, robust_scenes[ti], /*robust=*/true); });
     }
     RaySets rs = make_rays(mesh, cfg.res, read_scene_camera(path));
     for (const RayArray& rays : rs.sets) {
       for (size_t ti = 0; ti < cfg.threads.size(); ++ti) {
         const int nt = cfg.threads[ti];
         tbb::global_control gc(tbb::global_control::max_allowed_parallelism, nt);
-        Results rt, re, rs4;
+        Results rt, re, rs4, rr;
         rt.t.assign(rays.size(), -1.0f);
         re.t.assign(rays.size(), -1.0f);
         rs4.t.assign(rays.size(), -1.0f);
-        RTCScene es = escenes[ti].scene;
-        std::vector<double> st, se, s4;
+        rr.t.assign(rays.size(), -1.0f);
+        RTCScene es = escenes[ti].scene, er = robust_scenes[ti].scene;
+        std::vector<double> st, se, s4, sr;
         for (int r = 0; r < cfg.runs; ++r) {
           st.push_back(run_parallel(nt, rays.size(), [&](size_t b, size_t e) {
             tessera_trace(mesh, rays, b, e, rt, TraversalOrder::Ordered);
@@ -530,6 +536,7 @@ void compare(const Config& cfg) {
             tessera_trace(mesh_sse, rays, b, e, rs4, TraversalOrder::Ordered);
           }));
           se.push_back(run_parallel(nt, rays.size(), [&](size_t b, size_t e) { embree_trace(es, rays, b, e, re); }));
+          sr.push_back(run_parallel(nt, rays.size(), [&](size_t b, size_t e) { embree_trace(er, rays, b, e, rr); }));
         }
         size_t bad = 0;
         double agree = agreement(rt, re, rays, &bad);
@@ -542,18 +549,20 @@ void compare(const Config& cfg) {
                            rt.t[i], rs4.t[i], re.t[i]),
               brute_force_dump(soup, rays.o[i], rays.d[i]);
         double mt = rays.size() / median(st) * 1e-6, me = rays.size() / median(se) * 1e-6;
-        double m4 = rays.size() / median(s4) * 1e-6;
-        std::snprintf(line, sizeof line, "| %s | %s | %zu | %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.4f%% (%zu differ) |\n",
-                      name.c_str(), rays.kind.c_str(), rays.size(), nt, mt, m4, me, mt / me, m4 / me, 100.0 * agree, bad);
+        double m4 = rays.size() / median(s4) * 1e-6, mr = rays.size() / median(sr) * 1e-6;
+        std::snprintf(line, sizeof line, "| %s | %s | %zu | %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.4f%% (%zu differ) |\n",
+                      name.c_str(), rays.kind.c_str(), rays.size(), nt, mt, m4, me, mr, mt / me, m4 / me, mt / mr,
+                      100.0 * agree, bad);
         trace_table += line;
         std::fprintf(stderr, "%s", line);
       }
     }
     escenes.clear();
+    robust_scenes.clear();
     for (RTCDevice d : devices) rtcReleaseDevice(d);
   }
   std::printf("### Build\n\n%s\n### Traversal\n\nMrays/s = rays / median %s of %d passes over the whole ray "
-              "array. Ratio = Tessera (default path) / Embree (>= 1: Tessera as fast or faster); ratio SSE2 = the SSE2 BVH4 fallback (what runs on CPUs without AVX2) / Embree, measured in the same loop. Agreement: same hit/miss and, for "
+              "array. Ratio = Tessera (default path) / Embree (>= 1: Tessera as fast or faster); ratio SSE2 = the SSE2 BVH4 fallback (what runs on CPUs without AVX2) / Embree, measured in the same loop; ratio robust = Tessera / Embree with RTC_SCENE_FLAG_ROBUST (its mode without the optimisations that cost accuracy, the guarantee Tessera's watertight test and conservative box test always give), same build quality, same loop. Agreement: same hit/miss and, for "
               "hits, distances within 1e-4 relative or 4 float epsilons of the hit's coordinates (|o|_inf + t): "
               "a hit point is known to about an ulp of its coordinates, whichever engine computes it.\n\n%s\n",
               build_table.c_str(), g_cpu_clock ? "time (1 thread: thread CPU time, 2 threads: wall time)" : "wall time",
@@ -611,7 +620,8 @@ void trace_only(const Config& cfg) {
     const Mesh mesh = tessera_build(soup, opt);
     RTCDevice dev = rtcNewDevice("threads=1");
     EmbreeScene es;
-    if (cfg.engine == "embree") embree_build(dev, soup, es);
+    const bool embree = cfg.engine == "embree" || cfg.engine == "embree-robust";
+    if (embree) embree_build(dev, soup, es, cfg.engine == "embree-robust");
     RaySets rs = make_rays(mesh, cfg.res, read_scene_camera(path));
     if (getenv("MISS")) {  // rays that miss the root box: the per-ray cost outside the traversal loop
       const vec3 c = mesh.bounds().center();
@@ -626,7 +636,7 @@ void trace_only(const Config& cfg) {
       std::vector<double> st;
       for (int r = 0; r < cfg.runs; ++r)
         st.push_back(run_parallel(1, rays.size(), [&](size_t b, size_t e) {
-          if (cfg.engine == "embree") embree_trace(es.scene, rays, b, e, out);
+          if (embree) embree_trace(es.scene, rays, b, e, out);
           else tessera_trace(mesh, rays, b, e, out, TraversalOrder::Ordered);
         }));
       std::printf("%s %s %s %.3f Mrays/s\n", basename_of(path).c_str(), rays.kind.c_str(), cfg.engine.c_str(),
@@ -902,6 +912,104 @@ void build_only(const Config& cfg) {
   }
 }
 
+// --mode watertight (and --mode all): what the engines' speed buys, or
+// leaves out. The rays of the native test Numerics.WatertightAtSharedEdgesAndVertices:
+// aimed exactly at the vertices of a closed UV sphere (48 rings, 96
+// segments) and at 7 points along each shared edge, from inside and from
+// outside (a 60-degree cone around the normal), at four scales and
+// placements. A ray that hits nowhere near its target went through a crack
+// between two triangles. Counted for Tessera, Embree and Embree robust
+// (RTC_SCENE_FLAG_ROBUST); one thread, same rays.
+TriangleSoup uv_sphere_soup(int rings, int segments, float radius, vec3 center) {
+  TriangleSoup m;
+  auto add = [&](vec3 p) {
+    p = center + radius * p;
+    m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
+  };
+  add(vec3(0, 0, 1));
+  for (int i = 1; i < rings; ++i) {
+    const float th = kPi * i / rings;
+    for (int j = 0; j < segments; ++j) {
+      const float ph = 2.0f * kPi * j / segments;
+      add(vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)));
+    }
+  }
+  add(vec3(0, 0, -1));
+  const uint32_t south = uint32_t(m.positions.size() / 3 - 1);
+  auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * segments + (j % segments)); };
+  for (int j = 0; j < segments; ++j) {
+    m.indices.insert(m.indices.end(), {0u, ring(1, j), ring(1, j + 1)});
+    m.indices.insert(m.indices.end(), {south, ring(rings - 1, j + 1), ring(rings - 1, j)});
+  }
+  for (int i = 1; i < rings - 1; ++i)
+    for (int j = 0; j < segments; ++j) {
+      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)});
+      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)});
+    }
+  return m;
+}
+
+void watertight(const Config&) {
+  struct Case { float radius; vec3 center; const char* name; };
+  const Case cases[] = {{1.0f, vec3(0.0f), "radius 1 at the origin"},
+                        {1e-4f, vec3(0.0f), "radius 1e-4 at the origin"},
+                        {1e4f, vec3(0.0f), "radius 1e4 at the origin"},
+                        {1.0f, vec3(1e3f, 0.0f, -1e3f), "radius 1 at (1e3, 0, -1e3)"}};
+  std::printf("## Watertightness: rays at shared edges and vertices\n\n"
+              "The rays of the native test `Numerics.WatertightAtSharedEdgesAndVertices`: aimed exactly at each vertex "
+              "and at 7 points along each edge of a closed UV sphere (48 x 96, 9,024 triangles), 4 from inside and 4 "
+              "from outside per point; a ray whose hit is not within 1e-3 radii of its target (or that hits nothing) "
+              "went through a crack. What each engine's speed above is bought with.\n\n"
+              "| sphere | rays | Tessera through | Embree through | Embree robust through |\n|---|---:|---:|---:|---:|\n");
+  RTCDevice dev = rtcNewDevice("threads=1");
+  for (const Case& cs : cases) {
+    const TriangleSoup soup = uv_sphere_soup(48, 96, cs.radius, cs.center);
+    const Mesh mesh = tessera_build(soup, BuildOptions{});
+    EmbreeScene plain, robust;
+    embree_build(dev, soup, plain);
+    embree_build(dev, soup, robust, /*robust=*/true);
+    const vec3* pos = reinterpret_cast<const vec3*>(soup.positions.data());
+    uint64_t rays = 0, through[3] = {0, 0, 0};
+    for (size_t t = 0; t < soup.num_triangles(); ++t) {
+      Rng rng(t + 1);
+      for (int e = 0; e < 3; ++e) {
+        const vec3 a = pos[soup.indices[3 * t + e]], b = pos[soup.indices[3 * t + (e + 1) % 3]];
+        for (int k = 0; k < 8; ++k) {
+          const vec3 target = k == 0 ? a : a + (k / 8.0f) * (b - a);
+          const vec3 n = glm::normalize(target - cs.center);
+          for (int j = 0; j < 8; ++j) {
+            vec3 o;
+            if (j < 4) {
+              o = cs.center + 0.5f * cs.radius * (vec3(rng.next(), rng.next(), rng.next()) - 0.5f);
+            } else {
+              const Frame fr(n);
+              const float z = 0.5f + 0.5f * rng.next(), phi = 2.0f * kPi * rng.next(), r = std::sqrt(1.0f - z * z);
+              o = target + 2.0f * cs.radius * fr.to_world(vec3(r * std::cos(phi), r * std::sin(phi), z));
+            }
+            const vec3 d = target - o;
+            const float dist = glm::length(d);
+            RayArray one;
+            one.push(o, d / dist, kInf);
+            Results r[3];
+            for (Results& x : r) x.t.assign(1, kInf);
+            tessera_trace(mesh, one, 0, 1, r[0], TraversalOrder::Ordered);
+            embree_trace(plain.scene, one, 0, 1, r[1]);
+            embree_trace(robust.scene, one, 0, 1, r[2]);
+            ++rays;
+            for (int x = 0; x < 3; ++x)
+              if (!(std::abs(r[x].t[0] - dist) <= 1e-3f * cs.radius)) ++through[x];
+          }
+        }
+      }
+    }
+    std::printf("| %s | %llu | %llu | %llu | %llu |\n", cs.name, (unsigned long long)rays,
+                (unsigned long long)through[0], (unsigned long long)through[1], (unsigned long long)through[2]);
+    std::fflush(stdout);
+  }
+  rtcReleaseDevice(dev);
+  std::printf("\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -934,12 +1042,13 @@ int main(int argc, char** argv) {
     } else cfg.meshes.push_back(a);
   }
   if (cfg.meshes.empty()) {
-    std::fprintf(stderr, "usage: bench_bvh [--mode compare|builders|all] [--runs N] [--res R] [--threads 1,2] "
+    std::fprintf(stderr, "usage: bench_bvh [--mode compare|builders|watertight|all] [--runs N] [--res R] [--threads 1,2] "
                          "[--bins 4,8,16] [--builder-threads T] [--builder-res R] [--builder-meshes a.obj,b.ply] mesh...\n");
     return 2;
   }
   if (cfg.mode == "compare" || cfg.mode == "all") compare(cfg);
   if (cfg.mode == "builders" || cfg.mode == "all") builders(cfg);
+  if (cfg.mode == "watertight" || cfg.mode == "all") watertight(cfg);
   if (cfg.mode == "trace") trace_only(cfg);
   if (cfg.mode == "ab") ab(cfg);
   if (cfg.mode == "stats") tree_stats(cfg);
