@@ -51,6 +51,7 @@
 #include "core/simd.h"
 #include "core/triangle.h"
 #include "io/mesh_file.h"
+#include "scene_fixtures.h"
 #ifdef TESSERA_BVH_COUNTERS
 #include "core/simd_tri4.h"
 #endif
@@ -921,32 +922,11 @@ void build_only(const Config& cfg) {
 // between two triangles. Counted for Tessera, Embree and Embree robust
 // (RTC_SCENE_FLAG_ROBUST); one thread, same rays.
 TriangleSoup uv_sphere_soup(int rings, int segments, float radius, vec3 center) {
-  TriangleSoup m;
-  auto add = [&](vec3 p) {
-    p = center + radius * p;
-    m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
-  };
-  add(vec3(0, 0, 1));
-  for (int i = 1; i < rings; ++i) {
-    const float th = kPi * i / rings;
-    for (int j = 0; j < segments; ++j) {
-      const float ph = 2.0f * kPi * j / segments;
-      add(vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)));
-    }
-  }
-  add(vec3(0, 0, -1));
-  const uint32_t south = uint32_t(m.positions.size() / 3 - 1);
-  auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * segments + (j % segments)); };
-  for (int j = 0; j < segments; ++j) {
-    m.indices.insert(m.indices.end(), {0u, ring(1, j), ring(1, j + 1)});
-    m.indices.insert(m.indices.end(), {south, ring(rings - 1, j + 1), ring(rings - 1, j)});
-  }
-  for (int i = 1; i < rings - 1; ++i)
-    for (int j = 0; j < segments; ++j) {
-      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)});
-      m.indices.insert(m.indices.end(), {ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)});
-    }
-  return m;
+  fixtures::SphereMesh m = fixtures::uv_sphere(rings, segments, radius, center);
+  TriangleSoup soup;
+  soup.positions = std::move(m.pos);
+  soup.indices = std::move(m.idx);
+  return soup;
 }
 
 void watertight(const Config&) {

@@ -1,8 +1,46 @@
 // Small scenes built in code for the native tests.
 #pragma once
+#include <vector>
+
 #include "core/scene.h"
 
 namespace tessera::fixtures {
+
+// A UV sphere with shared vertices (poles shared by a whole fan), closed
+// (test_numerics.cpp's watertightness and self-intersection tests, and
+// bench_bvh --mode watertight).
+struct SphereMesh {
+  std::vector<float> pos;
+  std::vector<uint32_t> idx;
+};
+inline SphereMesh uv_sphere(int rings, int segments, float radius, vec3 center) {
+  SphereMesh m;
+  auto add = [&](vec3 p) {
+    p = center + radius * p;
+    m.pos.insert(m.pos.end(), {p.x, p.y, p.z});
+  };
+  add(vec3(0, 0, 1));
+  for (int i = 1; i < rings; ++i) {
+    float th = kPi * i / rings;
+    for (int j = 0; j < segments; ++j) {
+      float ph = 2.0f * kPi * j / segments;
+      add(vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)));
+    }
+  }
+  add(vec3(0, 0, -1));
+  const uint32_t south = uint32_t(m.pos.size() / 3 - 1);
+  auto ring = [&](int i, int j) { return uint32_t(1 + (i - 1) * segments + (j % segments)); };
+  for (int j = 0; j < segments; ++j) {
+    m.idx.insert(m.idx.end(), {0u, ring(1, j), ring(1, j + 1)});
+    m.idx.insert(m.idx.end(), {south, ring(rings - 1, j + 1), ring(rings - 1, j)});
+  }
+  for (int i = 1; i < rings - 1; ++i)
+    for (int j = 0; j < segments; ++j) {
+      m.idx.insert(m.idx.end(), {ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)});
+      m.idx.insert(m.idx.end(), {ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)});
+    }
+  return m;
+}
 
 // The mesh input over vertex positions (3 floats each) and triangle indices
 // (3 each) that the caller keeps alive.

@@ -997,7 +997,7 @@ void add_checker_square(Scene& s, float z, float half, int n, float blur) {
   t.set_diffuse_blur(blur);
   s.textures.push_back(std::move(t));
   Material m = with_closures({closure(ClosureKind::Diffuse, 1, vec3(1.0f), 0.0f)});
-  m.base_color_tex = TextureRef{uint32_t(s.textures.size() - 1), 0};
+  m.base_color_tex = TextureRef{int32_t(s.textures.size()) - 1, 0};
   const float pos[12] = {-half, -half, z, half, -half, z, half, half, z, -half, half, z};
   const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
   const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
