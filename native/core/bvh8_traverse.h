@@ -120,21 +120,23 @@ struct Ray8x {
 
 // The triangle test's constants (shear), made at the first leaf: most
 // primary and random rays never reach one (they miss the mesh or pass
-// between its boxes), and the shear costs a division.
+// between its boxes), and the shear costs a division. Keeps its own copy of
+// the ray, not a reference to the RaySetup: that would keep every value of
+// the set-up in memory (eight stores per ray that nothing reads back).
 template <typename Isa>
 class LazyTriRay4 {
  public:
-  explicit LazyTriRay4(const RaySetup<Isa>& s) : s_(s) {}
+  explicit LazyTriRay4(const RaySetup<Isa>& s) : o4_(s.o4), d4_(s.d4) {}
   const TriRay4& get() {
     if (__builtin_expect(!ready_, 0)) {
-      new (storage_) TriRay4(s_.o4, s_.d4);
+      new (storage_) TriRay4(o4_, d4_);
       ready_ = true;
     }
     return *std::launder(reinterpret_cast<const TriRay4*>(storage_));
   }
 
  private:
-  const RaySetup<Isa>& s_;
+  __m128 o4_, d4_;
   bool ready_ = false;
   alignas(16) unsigned char storage_[sizeof(TriRay4)];
 };
