@@ -1,5 +1,6 @@
 // Small scenes built in code for the native tests.
 #pragma once
+#include <random>
 #include <vector>
 
 #include "core/scene.h"
@@ -40,6 +41,40 @@ inline SphereMesh uv_sphere(int rings, int segments, float radius, vec3 center) 
       m.idx.insert(m.idx.end(), {ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)});
     }
   return m;
+}
+
+// The rays of the watertightness test for triangle t of sphere m (centre
+// c, radius r): for each edge a-b, aimed exactly at the vertex a and at 7
+// points along the edge (each edge is shared by two triangles, so each is
+// visited from both sides), 4 from near the centre and 4 from outside,
+// within a 60-degree cone around the normal (not grazing the silhouette).
+// fn(o, d, dist): unit direction d, dist from o to the target. Seeded by t,
+// so the rays do not depend on the order triangles are visited in.
+template <typename Fn>
+void for_each_edge_ray(const SphereMesh& m, vec3 c, float r, size_t t, Fn&& fn) {
+  const vec3* pos = reinterpret_cast<const vec3*>(m.pos.data());
+  std::mt19937 rng(uint32_t(t) * 7919u + 1u);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int e = 0; e < 3; ++e) {
+    const vec3 a = pos[m.idx[3 * t + e]], b = pos[m.idx[3 * t + (e + 1) % 3]];
+    for (int k = 0; k < 8; ++k) {
+      const vec3 target = k == 0 ? a : a + (k / 8.0f) * (b - a);
+      const vec3 n = glm::normalize(target - c);
+      for (int j = 0; j < 8; ++j) {
+        vec3 o;
+        if (j < 4) {
+          o = c + 0.5f * r * (vec3(u(rng), u(rng), u(rng)) - 0.5f);
+        } else {
+          Frame fr(n);
+          float z = 0.5f + 0.5f * u(rng), phi = 2.0f * kPi * u(rng), s = std::sqrt(1.0f - z * z);
+          o = target + 2.0f * r * fr.to_world(vec3(s * std::cos(phi), s * std::sin(phi), z));
+        }
+        const vec3 d = target - o;
+        const float dist = glm::length(d);
+        fn(o, d / dist, dist);
+      }
+    }
+  }
 }
 
 // The mesh input over vertex positions (3 floats each) and triangle indices

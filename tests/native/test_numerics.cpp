@@ -343,44 +343,18 @@ TEST(Numerics, WatertightAtSharedEdgesAndVertices) {
     Scene s;
     add_mesh(s, m, 0);
     s.commit();
-    const vec3* pos = reinterpret_cast<const vec3*>(m.pos.data());
     const size_t ntri = m.idx.size() / 3;
     tbb::parallel_for(size_t(0), ntri, [&](size_t t) {
-      std::mt19937 rng(uint32_t(t) * 7919u + 1u);
-      std::uniform_real_distribution<float> u(0.0f, 1.0f);
       uint64_t local_rays = 0, local_miss = 0;
-      for (int e = 0; e < 3; ++e) {
-        const vec3 a = pos[m.idx[3 * t + e]], b = pos[m.idx[3 * t + (e + 1) % 3]];
-        // Each edge's vertex a and 7 points along the edge a-b (each edge is
-        // shared by two triangles; each is visited from both sides).
-        for (int k = 0; k < 8; ++k) {
-          const float f = k / 8.0f;
-          const vec3 target = k == 0 ? a : a + f * (b - a);
-          const vec3 n = glm::normalize(target - cs.center);
-          for (int j = 0; j < 8; ++j) {
-            // Inside: from near the centre. Outside: from within a cone of
-            // 60 degrees around the normal (not grazing the silhouette).
-            const bool inside = j < 4;
-            vec3 o;
-            if (inside) {
-              o = cs.center + 0.5f * cs.radius * (vec3(u(rng), u(rng), u(rng)) - 0.5f);
-            } else {
-              Frame fr(n);
-              float z = 0.5f + 0.5f * u(rng), phi = 2.0f * kPi * u(rng), r = std::sqrt(1.0f - z * z);
-              o = target + 2.0f * cs.radius * fr.to_world(vec3(r * std::cos(phi), r * std::sin(phi), z));
-            }
-            const vec3 d = target - o;
-            const float dist = glm::length(d);
-            Ray ray{o, d / dist, kInf};
-            Hit h;
-            ++local_rays;
-            // From inside, the hit is where the ray leaves (near target);
-            // from outside, it enters at the target: a hit much farther is
-            // the far side, i.e. the ray went through a crack.
-            if (!s.intersect(ray, h) || std::abs(h.t - dist) > 1e-3f * cs.radius) ++local_miss;
-          }
-        }
-      }
+      fixtures::for_each_edge_ray(m, cs.center, cs.radius, t, [&](const vec3& o, const vec3& d, float dist) {
+        Ray ray{o, d, kInf};
+        Hit h;
+        ++local_rays;
+        // From inside, the hit is where the ray leaves (near target); from
+        // outside, it enters at the target: a hit much farther is the far
+        // side, i.e. the ray went through a crack.
+        if (!s.intersect(ray, h) || std::abs(h.t - dist) > 1e-3f * cs.radius) ++local_miss;
+      });
       rays += local_rays;
       misses += local_miss;
     });
