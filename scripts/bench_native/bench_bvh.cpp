@@ -1,10 +1,11 @@
 // Side-by-side benchmark of Tessera's BVH (build + single-ray traversal)
-// against Embree 3 (RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 / rtcOccluded1).
+// against Embree 3 (RTC_BUILD_QUALITY_MEDIUM, rtcIntersect1 / rtcOccluded1; by
+// default and with RTC_SCENE_FLAG_ROBUST).
 //
-//   bench_bvh [--mode compare|builders|all] [--runs N] [--res R] [--threads 1,2]
+//   bench_bvh [--mode compare|builders|watertight|all] [--runs N] [--res R] [--threads 1,2]
 //             [--bins 4,8,16,32,64] [--builder-threads T] [--builder-res R] [--builder-meshes a,b]
 //             [--clock wall|cpu] [--stat median|min] mesh files...
-//   bench_bvh --mode trace [--kind primary|diffuse|random|shadow|all] [--engine tessera|sse2|embree] ...
+//   bench_bvh --mode trace [--kind primary|diffuse|random|shadow|all] [--engine tessera|sse2|embree|embree-robust] ...
 //             (one engine only, for perf; PASSES=1 also prints each pass's Mrays/s, MISS=1 moves
 //             the rays off the mesh: the per-ray cost outside the traversal loop)
 //   bench_bvh --mode ab --ab-base no-collapse,separate-leaves ...
@@ -426,7 +427,7 @@ struct Config {
   std::vector<std::string> meshes;
   std::vector<std::string> builder_meshes;  // empty: all
   std::string kind = "all";         // --mode trace
-  std::string engine = "tessera";   // --mode trace: tessera, sse2 or embree
+  std::string engine = "tessera";   // --mode trace: tessera, sse2, embree or embree-robust
   bool engine_set = false;          // --mode build: both engines unless --engine is given
   std::string ab_base;              // --mode ab: options of the base tree
 };
