@@ -234,11 +234,13 @@ struct LightBVH::Builder {
 
 void LightBVH::build(const std::vector<LightBounds>& lights) {
   nodes_.clear();
+  single_ = false;
   place_.assign(lights.size(), ~0u);
   std::vector<uint32_t> ids;
   for (uint32_t i = 0; i < lights.size(); ++i)
     if (lights[i].phi > 0.0f) ids.push_back(i);
   if (ids.empty()) return;
+  if (ids.size() == 1) single_ = true, single_light_ = ids[0];
   Builder builder{std::vector<BuildBounds>(lights.size()), std::vector<vec3>(lights.size()), {}, *this};
   for (uint32_t i : ids) builder.lights[i] = BuildBounds(lights[i]), builder.centroid[i] = lights[i].bounds.center();
   builder.binary.resize(2 * ids.size() - 1);
@@ -469,6 +471,12 @@ static float lane_sum(const float imp[kLightBVHWidth]) {
 
 bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf, float* u_remapped) const {
   if (nodes_.empty()) return false;
+  if (single_) {
+    *light = single_light_;
+    *pmf = 1.0f;
+    if (u_remapped) *u_remapped = u;
+    return true;
+  }
   uint32_t node = 0;
   float prob = 1.0f;
   for (;;) {
@@ -505,6 +513,7 @@ bool LightBVH::sample(const vec3& p, const vec3& n, float u, uint32_t* light, fl
 
 float LightBVH::pmf(const vec3& p, const vec3& n, uint32_t light) const {
   if (light >= place_.size() || place_[light] == ~0u) return 0.0f;
+  if (single_) return 1.0f;
   uint32_t node = place_[light] / kLightBVHWidth, lane = place_[light] % kLightBVHWidth;
   float prob = 1.0f;
   for (;;) {

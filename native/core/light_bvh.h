@@ -76,7 +76,7 @@ class LightBVH {
   bool empty() const { return nodes_.empty(); }
 
   // Picks a light for point p with normal n from u in [0,1); false when no
-  // light can contribute there.
+  // light can contribute there (a tree of one light always picks it).
   // u_remapped (if given): u rescaled to [0,1) again within the choices made.
   bool sample(const vec3& p, const vec3& n, float u, uint32_t* light, float* pmf, float* u_remapped = nullptr) const;
   // Probability with which sample() picks `light` at (p, n).
@@ -93,6 +93,14 @@ class LightBVH {
   };
   struct Builder;  // the binary SAOH tree and its collapse (light_bvh.cpp)
   std::vector<Node> nodes_;
+  // A tree of one light (a scene's one lamp or quad light) is picked with
+  // probability 1 wherever it is, without weighing the root's eight lanes (a
+  // third of a light sample's instructions). Where its importance would be 0
+  // it cannot contribute: its sample then carries no light (the light
+  // rejects it: behind a one-sided emitter), and a BSDF-sampled ray that
+  // hits it there finds no emission to weigh.
+  bool single_ = false;
+  uint32_t single_light_ = 0;
   // Per light: node * kLightBVHWidth + lane where it sits; ~0 for lights not in the tree.
   std::vector<uint32_t> place_;
 };

@@ -141,15 +141,33 @@ constexpr float kSolidAngleWithin = 2.0f;
 // Sets t's centre and the squared distance from it beyond which sample()
 // samples t by area: its bounding sphere (centre, radius r) is then d > 0 away with
 // area < kMinSphericalSampleArea d^2 or d >= kSolidAngleWithin r, i.e. from
-// r + min(sqrt(area / kMinSphericalSampleArea), kSolidAngleWithin r) on.
+// r + min(sqrt(area / kMinSphericalSampleArea), kSolidAngleWithin r) on. A
+// rectangle's sphere is about its middle, through its corners.
 void set_area_from(EmissiveTriangle& t) {
-  const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
-  t.centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
-  const float r2 = std::max(glm::dot(t.p0 - t.centre, t.p0 - t.centre),
-                            std::max(glm::dot(v1 - t.centre, v1 - t.centre), glm::dot(v2 - t.centre, v2 - t.centre)));
+  float r2;
+  if (t.rectangle()) {
+    t.centre = t.p0 + 0.5f * (t.e1 + t.e2);
+    r2 = 0.25f * glm::dot(t.e1 + t.e2, t.e1 + t.e2);
+  } else {
+    const vec3 v1 = t.p0 + t.e1, v2 = t.p0 + t.e2;
+    t.centre = t.p0 + (t.e1 + t.e2) * (1.0f / 3.0f);
+    r2 = std::max(glm::dot(t.p0 - t.centre, t.p0 - t.centre),
+                  std::max(glm::dot(v1 - t.centre, v1 - t.centre), glm::dot(v2 - t.centre, v2 - t.centre)));
+  }
   const float r = std::sqrt(r2);
   const float d = r + std::min(std::sqrt(t.area / kMinSphericalSampleArea), kSolidAngleWithin * r);
   t.area_from2 = d * d;
+}
+
+// A point in the emitter's plane (on the emitter itself, or on its other
+// triangles) receives nothing from it; its corners then lie on one great
+// circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
+// it the zero cosine it should have. Returns its distance h from the plane.
+// (The tolerance scales with a triangle's area: a rectangle's half.)
+bool in_emitter_plane(const EmissiveTriangle& t, const vec3& p, float* h) {
+  *h = std::abs(glm::dot(p - t.p0, t.n));
+  const float triangle_area = t.rectangle() ? 0.5f * t.area : t.area;
+  return *h <= 1e-5f * std::sqrt(triangle_area) + 1e-6f * (max_component(abs(p)) + max_component(abs(t.p0)));
 }
 
 // Solid angle of triangle t from p when sample() samples it by solid angle,
@@ -160,18 +178,25 @@ void set_area_from(EmissiveTriangle& t) {
 float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3], bool* near_plane = nullptr) {
   const vec3 to_centre = p - t.centre;
   if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
-  // A point in the triangle's plane (on the emitter itself, or on its other
-  // triangles) receives nothing from it; its corners then lie on one great
-  // circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
-  // it the zero cosine it should have.
-  const float h = std::abs(glm::dot(p - t.p0, t.n));
-  if (h <= 1e-5f * std::sqrt(t.area) + 1e-6f * (max_component(abs(p)) + max_component(abs(t.p0)))) return 0.0f;
+  float h;
+  if (in_emitter_plane(t, p, &h)) return 0.0f;
   const vec3 a = t.p0 - p, b = a + t.e1, c = a + t.e2;
   const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
   if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;
   corners[0] = a * (1.0f / la), corners[1] = b * (1.0f / lb), corners[2] = c * (1.0f / lc);
   if (near_plane) *near_plane = h < 0.01f * std::max(la, std::max(lb, lc));
   const float omega = spherical_triangle_area(corners[0], corners[1], corners[2]);
+  return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
+}
+
+// The same decision as spherical_sampling_area for a rectangle emitter,
+// with its spherical rectangle from p.
+float rectangle_sampling_area(const EmissiveTriangle& t, const vec3& p, SphericalRectangle* rect) {
+  const vec3 to_centre = p - t.centre;
+  if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
+  float h;
+  if (in_emitter_plane(t, p, &h) || !rect->init(p, t.p0, t.e1, t.e2)) return 0.0f;
+  const float omega = rect->solid_angle();
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
 
@@ -356,6 +381,7 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
     b.bounds.grow(t.p0);
     b.bounds.grow(t.p0 + t.e1);
     b.bounds.grow(t.p0 + t.e2);
+    if (t.rectangle()) b.bounds.grow(t.p0 + t.e1 + t.e2);
     b.w = front > 0.0f ? t.n : -t.n;
     b.two_sided = front > 0.0f && back > 0.0f;
     b.cos_theta_o = 1.0f;
@@ -380,13 +406,19 @@ void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle
     else if (top_entries_[i] == kTopWorld) top_world_pmf_ = top_.pmf(i);
     else if (lights_[top_entries_[i]].radius > 0.0f) sun_disks_.push_back({top_entries_[i], top_.pmf(i)});
   }
-  // Lookup from a hit (instance, prim) to its triangle light.
-  triangle_keys_.resize(triangles_.size());
-  triangle_order_.resize(triangles_.size());
-  std::iota(triangle_order_.begin(), triangle_order_.end(), 0u);
-  auto key = [&](uint32_t i) { return (uint64_t(triangles_[i].instance) << 32) | triangles_[i].prim; };
-  std::sort(triangle_order_.begin(), triangle_order_.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
-  for (size_t i = 0; i < triangle_order_.size(); ++i) triangle_keys_[i] = key(triangle_order_[i]);
+  // Lookup from a hit (instance, prim) to its emitter: a rectangle's two
+  // triangles both lead to it.
+  std::vector<std::pair<uint64_t, uint32_t>> keyed;
+  keyed.reserve(triangles_.size() * 2);
+  for (uint32_t i = 0; i < triangles_.size(); ++i) {
+    const EmissiveTriangle& t = triangles_[i];
+    keyed.push_back({(uint64_t(t.instance) << 32) | t.prim, i});
+    if (t.rectangle()) keyed.push_back({(uint64_t(t.instance) << 32) | t.second, i});
+  }
+  std::sort(keyed.begin(), keyed.end());
+  triangle_keys_.resize(keyed.size());
+  triangle_order_.resize(keyed.size());
+  for (size_t i = 0; i < keyed.size(); ++i) triangle_keys_[i] = keyed[i].first, triangle_order_[i] = keyed[i].second;
 }
 
 float LightSampler::selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const {
@@ -420,24 +452,40 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   }
   if (entry >= nl) {
     const EmissiveTriangle& t = triangles_[entry - nl];
-    vec3 corners[3];
-    bool near_plane = true;
-    const float omega = spherical_sampling_area(t, p, corners, &near_plane);
+    // Uniformly in the solid angle the emitter subtends (omega > 0), or by area.
+    float omega;
     vec3 q;
     float dist2;
-    if (omega > 0.0f) {
-      vec3 w;
-      if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w, near_plane)) return false;
-      // Where the sampled direction meets the triangle's plane.
-      const float denom = glm::dot(w, t.n);
-      const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;
-      if (!(s > 0.0f && std::isfinite(s))) return false;
-      q = p + s * w;
-      ls.wi = w;
-      ls.dist = s;
-      dist2 = s * s;
+    if (t.rectangle()) {
+      SphericalRectangle rect;
+      omega = rectangle_sampling_area(t, p, &rect);
+      if (omega > 0.0f) {
+        const vec3 w = rect.sample_offset(u);  // from p to the point
+        dist2 = glm::dot(w, w);
+        if (!(dist2 > 0.0f)) return false;
+        ls.dist = std::sqrt(dist2);
+        ls.wi = w / ls.dist;
+        q = p + w;
+      }
     } else {
-      const vec2 b = sample_uniform_triangle(u);
+      vec3 corners[3];
+      bool near_plane = true;
+      omega = spherical_sampling_area(t, p, corners, &near_plane);
+      if (omega > 0.0f) {
+        vec3 w;
+        if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w, near_plane)) return false;
+        // Where the sampled direction meets the triangle's plane.
+        const float denom = glm::dot(w, t.n);
+        const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;
+        if (!(s > 0.0f && std::isfinite(s))) return false;
+        q = p + s * w;
+        ls.wi = w;
+        ls.dist = s;
+        dist2 = s * s;
+      }
+    }
+    if (!(omega > 0.0f)) {
+      const vec2 b = t.rectangle() ? u : sample_uniform_triangle(u);
       q = t.p0 + b.x * t.e1 + b.y * t.e2;
       const vec3 d = q - p;
       dist2 = glm::dot(d, d);
@@ -570,9 +618,16 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
   const uint32_t t = triangle_order_[it - triangle_keys_.begin()];
   const float pmf = selection_pmf(uint32_t(lights_.size()) + t, p, n);
   if (pmf <= 0.0f) return 0.0f;
-  vec3 corners[3];
-  const float omega = spherical_sampling_area(triangles_[t], p, corners);
-  return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * triangles_[t].area);
+  const EmissiveTriangle& e = triangles_[t];
+  float omega;
+  if (e.rectangle()) {
+    SphericalRectangle rect;
+    omega = rectangle_sampling_area(e, p, &rect);
+  } else {
+    vec3 corners[3];
+    omega = spherical_sampling_area(e, p, corners);
+  }
+  return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * e.area);
 }
 
 float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {

@@ -1,6 +1,7 @@
 // Light sources and light sampling for next-event estimation. A light is
 // picked in two steps: a power-weighted alias table over the light BVH (all
-// bounded emitters: point, spot and area lights, emissive triangles), the
+// bounded emitters: point, spot and area lights, emissive triangles and
+// rectangles), the
 // world when its image emits (a constant world is left to BSDF sampling, as
 // in Cycles), and each sun; then, in the BVH, by the estimated
 // contribution at the shading point (light_bvh.h). Conversions from
@@ -62,7 +63,15 @@ struct Light {
   float area = 0.0f;        // area lights: surface area
 };
 
+// An emissive triangle p0 + s e1 + t e2 (s, t >= 0, s + t <= 1) or, when
+// `second` names the other triangle of the pair, the rectangle p0 + s e1 +
+// t e2 (s, t in [0, 1], e1 perpendicular to e2) that two emissive triangles
+// sharing their hypotenuse make (a quad light, as Blender's planes are):
+// sample() then draws directions uniformly in the solid angle of the whole
+// rectangle (Urena et al. 2013, as for area lights), one entry instead of
+// two (Scene::collect_emissive_triangles pairs them).
 struct EmissiveTriangle {
+  static constexpr uint32_t kAlone = ~0u;
   vec3 p0, e1, e2;  // world space
   vec3 n;           // unit geometric normal (front side)
   float area;
@@ -78,6 +87,8 @@ struct EmissiveTriangle {
   vec3 centre{0.0f};
   float area_from2 = 0.0f;
   uint8_t visibility = kVisibleToAll;  // its instance's (visibility.h)
+  uint32_t second = kAlone;  // a rectangle: its other triangle (leaf order)
+  bool rectangle() const { return second != kAlone; }
 };
 
 struct LightSample {

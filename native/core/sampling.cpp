@@ -57,46 +57,62 @@ bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, floa
                     : sample_spherical_triangle_in<float>(a, b, c, area, u, w);
 }
 
-bool SphericalRectangle::init(const vec3& o_, const vec3& corner, const vec3& ex, const vec3& ey) {
-  o = o_;
-  const float exl = glm::length(ex), eyl = glm::length(ey);
-  if (!(exl > 0.0f && eyl > 0.0f)) return false;
+template <typename Real>
+bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const vec3& ex_, const vec3& ey_) {
+  const V ex(ex_), ey(ey_);
+  const Real exl = glm::length(ex), eyl = glm::length(ey);
+  if (!(exl > 0 && eyl > 0)) return false;
   x = ex / exl, y = ey / eyl, z = glm::cross(x, y);
-  const vec3 d = corner - o;
+  const V d = V(corner) - V(o);
   z0 = glm::dot(d, z);
-  if (z0 > 0.0f) z = -z, z0 = -z0;  // the frame's z points away from the rectangle
-  if (!(z0 < 0.0f)) return false;
+  if (z0 > 0) z = -z, z0 = -z0;  // the frame's z points away from the rectangle
+  if (!(z0 < 0)) return false;
   x0 = glm::dot(d, x), y0 = glm::dot(d, y);
   x1 = x0 + exl, y1 = y0 + eyl;
-  // Normals of the planes through o and each edge; the interior angles of
-  // the spherical quad are the angles between neighbouring ones.
-  const vec3 v00(x0, y0, z0), v01(x0, y1, z0), v10(x1, y0, z0), v11(x1, y1, z0);
-  const vec3 n0 = glm::normalize(glm::cross(v00, v10)), n1 = glm::normalize(glm::cross(v10, v11));
-  const vec3 n2 = glm::normalize(glm::cross(v11, v01)), n3 = glm::normalize(glm::cross(v01, v00));
-  if (!(is_finite(n0) && is_finite(n1) && is_finite(n2) && is_finite(n3))) return false;
-  auto angle = [](const vec3& a, const vec3& b) { return std::acos(std::clamp(-glm::dot(a, b), -1.0f, 1.0f)); };
-  const float g0 = angle(n0, n1), g1 = angle(n1, n2), g2 = angle(n2, n3), g3 = angle(n3, n0);
-  b0 = n0.z, b1 = n2.z;
-  k = 2.0f * kPi - g2 - g3;
+  // Normals of the planes through o and each edge, n0 (0, z0, -y0) / l0,
+  // n1 (-z0, 0, x1) / l1, n2 (0, -z0, y1) / l2, n3 (z0, 0, -x0) / l3 (the
+  // paper's closed forms of the cross products of neighbouring corners); the
+  // interior angles of the spherical quad are the angles between
+  // neighbouring ones, g_i = acos(-n_i . n_i+1).
+  const Real z2 = z0 * z0;
+  const Real l0 = std::sqrt(z2 + y0 * y0), l1 = std::sqrt(z2 + x1 * x1);
+  const Real l2 = std::sqrt(z2 + y1 * y1), l3 = std::sqrt(z2 + x0 * x0);
+  auto angle = [](Real c) { return std::acos(std::clamp(c, Real(-1), Real(1))); };
+  const Real g0 = angle(x1 * y0 / (l0 * l1)), g1 = angle(-x1 * y1 / (l1 * l2));
+  const Real g2 = angle(x0 * y1 / (l2 * l3)), g3 = angle(-x0 * y0 / (l3 * l0));
+  b0 = -y0 / l0, b1 = y1 / l2;
+  k = Real(2) * Real(M_PI) - g2 - g3;
   S = g0 + g1 - k;  // the angle excess: the solid angle
-  return S > 0.0f && std::isfinite(S);
+  return S > 0 && std::isfinite(S) && std::isfinite(float(S));
 }
 
-vec3 SphericalRectangle::sample(vec2 u) const {
+template <typename Real>
+vec3 SphericalRectangleT<Real>::sample_offset(vec2 u) const {
   // u.x: the sub-rectangle [x0, xu] of solid angle u.x S, solved for xu.
-  const float au = u.x * S + k;
-  const float sin_au = std::sin(au), cos_au = std::cos(au);
-  const float fu = (cos_au * b0 - b1) / sin_au;
-  float cu = std::copysign(1.0f, fu) / std::sqrt(fu * fu + b0 * b0);
-  cu = std::clamp(std::isfinite(cu) ? cu : 0.0f, -1.0f, 1.0f);
-  float xu = -(cu * z0) / safe_sqrt(1.0f - cu * cu);
+  const Real au = Real(u.x) * S + k;
+  const Real sin_au = std::sin(au), cos_au = std::cos(au);
+  const Real fu = (cos_au * b0 - b1) / sin_au;
+  Real cu = std::copysign(Real(1), fu) / std::sqrt(fu * fu + b0 * b0);
+  cu = std::clamp(std::isfinite(cu) ? cu : Real(0), Real(-1), Real(1));
+  Real xu = -(cu * z0) / std::sqrt(std::max(Real(0), Real(1) - cu * cu));
   xu = std::clamp(std::isfinite(xu) ? xu : x1, x0, x1);
   // u.y: uniform in the height h (cosine to the y axis) along that column.
-  const float dd = std::sqrt(xu * xu + z0 * z0);
-  const float h0 = y0 / std::sqrt(dd * dd + y0 * y0), h1 = y1 / std::sqrt(dd * dd + y1 * y1);
-  const float hv = h0 + u.y * (h1 - h0), hv2 = hv * hv;
-  const float yv = hv2 < 1.0f - 1e-6f ? hv * dd / std::sqrt(1.0f - hv2) : y1;
-  return o + xu * x + std::clamp(yv, y0, y1) * y + z0 * z;
+  const Real dd = std::sqrt(xu * xu + z0 * z0);
+  const Real h0 = y0 / std::sqrt(dd * dd + y0 * y0), h1 = y1 / std::sqrt(dd * dd + y1 * y1);
+  const Real hv = h0 + Real(u.y) * (h1 - h0), hv2 = hv * hv;
+  const Real yv = hv2 < Real(1) - Real(1e-6) ? hv * dd / std::sqrt(Real(1) - hv2) : y1;
+  return vec3(xu * x + std::clamp(yv, y0, y1) * y + z0 * z);
+}
+
+template struct SphericalRectangleT<float>;
+template struct SphericalRectangleT<double>;
+
+bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey) {
+  o_ = o;
+  const vec3 n = glm::cross(ex, ey), half = 0.5f * (ex + ey), to_middle = corner + half - o;
+  const float h = std::abs(glm::dot(to_middle, n)) / glm::length(n);
+  near_plane_ = h < 0.01f * (glm::length(to_middle) + glm::length(half));
+  return near_plane_ ? d_.init(o, corner, ex, ey) : f_.init(o, corner, ex, ey);
 }
 
 AliasTable::AliasTable(const std::vector<float>& weights) {

@@ -1,6 +1,8 @@
 #include "scene.h"
 
 #include <algorithm>
+#include <array>
+#include <cstring>
 
 #include <tbb/parallel_for.h>
 
@@ -36,6 +38,69 @@ static AABB transform_box(const AABB& b, const mat4& m) {
   return out;
 }
 
+namespace {
+
+// Joins the emissive triangles out[first ..] of one instance into rectangles
+// (EmissiveTriangle::second) where two of them make one: the same material,
+// the same hypotenuse (its two vertices the same in the mesh, bit for bit:
+// a quad's diagonal), right angles opposite each other and facing the same
+// way. `local` holds each one's mesh vertices, `material` its material.
+void join_rectangles(std::vector<EmissiveTriangle>& out, size_t first, const std::vector<const vec3*>& local,
+                     const std::vector<uint32_t>& material) {
+  struct Corner {
+    vec3 r, a, b;  // the right angle's vertex and its two edges (world)
+    int at = -1;   // its corner, -1: no right angle
+  };
+  const size_t n = out.size() - first;
+  std::vector<Corner> corner(n);
+  // (material, hypotenuse's vertices in the mesh) -> triangle, sorted to find pairs.
+  std::vector<std::pair<std::array<uint32_t, 7>, uint32_t>> keyed;
+  for (size_t j = 0; j < n; ++j) {
+    const EmissiveTriangle& t = out[first + j];
+    const vec3 at_corner[3][3] = {{t.p0, t.e1, t.e2}, {t.p0 + t.e1, -t.e1, t.e2 - t.e1}, {t.p0 + t.e2, -t.e2, t.e1 - t.e2}};
+    for (int c = 0; c < 3; ++c) {
+      const vec3 &a = at_corner[c][1], &b = at_corner[c][2];
+      if (!(std::abs(glm::dot(a, b)) <= 1e-5f * glm::length(a) * glm::length(b))) continue;
+      corner[j] = {at_corner[c][0], a, b, c};
+      vec3 h0 = local[j][(c + 1) % 3], h1 = local[j][(c + 2) % 3];
+      std::array<uint32_t, 7> key{material[j]};
+      if (std::lexicographical_compare(&h1.x, &h1.x + 3, &h0.x, &h0.x + 3)) std::swap(h0, h1);
+      std::memcpy(&key[1], &h0.x, 12);
+      std::memcpy(&key[4], &h1.x, 12);
+      keyed.push_back({key, uint32_t(j)});
+      break;
+    }
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<bool> joined(n, false);
+  for (size_t k = 0; k + 1 < keyed.size(); ++k) {
+    // Exactly two triangles on that edge with that material.
+    if (keyed[k].first != keyed[k + 1].first || (k + 2 < keyed.size() && keyed[k + 2].first == keyed[k].first) ||
+        (k > 0 && keyed[k - 1].first == keyed[k].first))
+      continue;
+    const uint32_t i = keyed[k].second, j = keyed[k + 1].second;
+    EmissiveTriangle &ti = out[first + i], &tj = out[first + j];
+    const Corner &ci = corner[i], &cj = corner[j];
+    // j's right angle is the fourth corner of i's rectangle, and both face the same way.
+    const vec3 fourth = ci.r + ci.a + ci.b;
+    const float tol = 1e-5f * (glm::length(ci.a) + glm::length(ci.b)) + 1e-6f * max_component(abs(fourth));
+    if (!(glm::length(cj.r - fourth) <= tol) || !(glm::dot(ti.n, tj.n) > 0.99999f)) continue;
+    const vec3 c = glm::cross(ci.a, ci.b);
+    ti.p0 = ci.r, ti.e1 = ci.a, ti.e2 = ci.b;
+    ti.area = glm::length(c);
+    ti.second = tj.prim;
+    ti.local_error = std::max(ti.local_error, tj.local_error);
+    joined[j] = true;
+    ++k;
+  }
+  size_t w = first;
+  for (size_t j = 0; j < n; ++j)
+    if (!joined[j]) out[w++] = out[first + j];
+  out.resize(w);
+}
+
+}  // namespace
+
 std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
   std::vector<EmissiveTriangle> out;
   // Object-space vertices of the meshes with emitters, read once per mesh
@@ -50,8 +115,12 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
     if (!(inst.visibility & kScatteredRays)) continue;  // no ray it lights would see it (Cycles: not a light)
     const Mesh& mesh = meshes[inst.mesh];
     std::vector<vec3>& verts = verts_of[inst.mesh];
+    const size_t first = out.size();
+    std::vector<const vec3*> mesh_verts;
+    std::vector<uint32_t> material;
     for (uint32_t k = 0; k < mesh.prim_ids.size(); ++k) {
-      const Material& m = materials[material_of(inst, mesh.slot(mesh.prim_ids[k]))];
+      const uint32_t mi = material_of(inst, mesh.slot(mesh.prim_ids[k]));
+      const Material& m = materials[mi];
       if (!m.is_emissive()) continue;
       if (verts.empty()) verts = leaf_order_vertices(mesh);
       // Edges from the local-space edges through the linear part of the
@@ -77,7 +146,10 @@ std::vector<EmissiveTriangle> Scene::collect_emissive_triangles() const {
       const float local_error = 2.0f * gamma(8) * local * stretch;
       out.push_back({p0, e1, e2, c / len, 0.5f * len, m.emission_front, m.emission_back, i, k, local_error});
       out.back().visibility = inst.visibility;
+      mesh_verts.push_back(v);
+      material.push_back(mi);
     }
+    join_rectangles(out, first, mesh_verts, material);
   }
   return out;
 }

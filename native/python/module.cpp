@@ -520,7 +520,19 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("num_instances", [](const Scene& s) { return s.instances.size(); })
       .def_property_readonly("num_meshes", [](const Scene& s) { return s.meshes.size(); })
       .def_property_readonly("num_lights", [](const Scene& s) { return s.light_sampler().lights().size(); })
-      .def_property_readonly("num_emissive_triangles", [](const Scene& s) { return s.light_sampler().triangles().size(); })
+      // Emissive triangles as light sampling has them: a rectangle counts its two.
+      .def_property_readonly("num_emissive_triangles",
+                             [](const Scene& s) {
+                               size_t n = 0;
+                               for (const EmissiveTriangle& t : s.light_sampler().triangles()) n += t.rectangle() ? 2 : 1;
+                               return n;
+                             })
+      .def_property_readonly("num_emissive_rectangles",
+                             [](const Scene& s) {
+                               size_t n = 0;
+                               for (const EmissiveTriangle& t : s.light_sampler().triangles()) n += t.rectangle();
+                               return n;
+                             })
       .def_property_readonly("memory_bytes", &Scene::memory_bytes)
       .def_property_readonly("tlas_build_seconds", [](const Scene& s) { return s.build_seconds; });
 

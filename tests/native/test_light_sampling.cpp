@@ -47,16 +47,35 @@ EmissiveTriangle emissive(const vec3& p0, const vec3& p1, const vec3& p2, uint32
   return t;
 }
 
-// A 1 x 1 two-sided quad light of unit radiance in the plane z = 0, centred
-// on the origin, as two emissive triangles.
-std::vector<vec3> quad() { return {{-0.5f, -0.5f, 0}, {0.5f, -0.5f, 0}, {0.5f, 0.5f, 0}, {-0.5f, 0.5f, 0}}; }
-LightSampler quad_light() {
-  const std::vector<vec3> q = quad();
+// The rectangle q0 q1 q2 q3 (q1 - q0 perpendicular to q3 - q0) as one
+// emitter, the way Scene::collect_emissive_triangles joins its two
+// triangles (q0 q1 q2: prim, q0 q2 q3: second).
+EmissiveTriangle emissive_rectangle(const std::vector<vec3>& q, uint32_t prim, uint32_t second, vec3 le_front,
+                                    vec3 le_back) {
+  EmissiveTriangle t = emissive(q[0], q[1], q[2], prim, le_front, le_back);
+  t.e2 = q[3] - q[0];
+  t.area = glm::length(glm::cross(t.e1, t.e2));
+  t.second = second;
+  return t;
+}
+
+// The quad q0 q1 q2 q3 as a light: two emissive triangles (q0 q1 q2 and
+// q0 q2 q3) or one rectangle.
+LightSampler quad_light(const std::vector<vec3>& q, bool rectangle, vec3 le_front = vec3(1), vec3 le_back = vec3(1)) {
   LightSampler ls;
-  ls.build({}, {emissive(q[0], q[1], q[2], 0, vec3(1), vec3(1)), emissive(q[0], q[2], q[3], 1, vec3(1), vec3(1))},
-           nullptr, 10.0f);
+  if (rectangle)
+    ls.build({}, {emissive_rectangle(q, 0, 1, le_front, le_back)}, nullptr, 10.0f);
+  else
+    ls.build({}, {emissive(q[0], q[1], q[2], 0, le_front, le_back), emissive(q[0], q[2], q[3], 1, le_front, le_back)},
+             nullptr, 10.0f);
   return ls;
 }
+
+// A 1 x 1 two-sided quad light of unit radiance in the plane z = 0, centred
+// on the origin.
+std::vector<vec3> quad() { return {{-0.5f, -0.5f, 0}, {0.5f, -0.5f, 0}, {0.5f, 0.5f, 0}, {-0.5f, 0.5f, 0}}; }
+LightSampler quad_light(bool rectangle = false) { return quad_light(quad(), rectangle); }
+const char* shape(bool rectangle) { return rectangle ? "rectangle" : "triangles"; }
 
 struct Estimate {
   double mean, stderr_, max_weight;
@@ -73,7 +92,7 @@ Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p,
     double w = 0.0;
     if (lights.sample(p, n, vec2(U(rng), U(rng)), s)) {
       w = s.li.x * std::max(0.0f, glm::dot(s.wi, n)) / s.pdf;
-      // The triangle hit along wi (the one the point is deepest inside),
+      // The emitter hit along wi (the one the point is deepest inside),
       // as the integrator finds it.
       int hit = -1;
       float hit_d = 0.0f, hit_cos = 0.0f, best = -1.0f;
@@ -86,7 +105,9 @@ Estimate irradiance_by_light_sampling(const LightSampler& lights, const vec3& p,
         const float d11 = glm::dot(t.e1, t.e1), d12 = glm::dot(t.e1, t.e2), d22 = glm::dot(t.e2, t.e2);
         const float q1 = glm::dot(q, t.e1), q2 = glm::dot(q, t.e2), det = d11 * d22 - d12 * d12;
         const float b1 = (d22 * q1 - d12 * q2) / det, b2 = (d11 * q2 - d12 * q1) / det;
-        const float inside = std::min(std::min(b1, b2), 1.0f - b1 - b2);
+        // Inside a triangle: b1, b2 >= 0 and b1 + b2 <= 1; a rectangle: both in [0, 1].
+        const float inside = t.rectangle() ? std::min(std::min(b1, b2), std::min(1.0f - b1, 1.0f - b2))
+                                           : std::min(std::min(b1, b2), 1.0f - b1 - b2);
         if (d > 0.0f && inside > best) hit = int(k), best = inside, hit_d = d, hit_cos = std::abs(denom);
       }
       EXPECT_GT(best, -2e-3f) << "sample " << i << " misses the light";
@@ -153,31 +174,35 @@ TEST(LightSampling, SphericalTriangleDirectionsAreUniformInSolidAngle) {
 // that Russian roulette then multiplies); solid-angle sampling gives every
 // sample about the same weight. Same irradiance, far smaller spread.
 TEST(LightSampling, TriangleLightCloseByIsSampledBySolidAngle) {
-  const LightSampler lights = quad_light();
-  const std::vector<vec3> q = quad();
-  // Above the middle of a triangle, on the diagonal the two share, and just
-  // outside the quad's edge.
-  for (vec2 xy : {vec2(0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.52f, 0.1f)})
-  // (1.2e-2 and up: sampled in float, see spherical_sampling_area)
-  for (float h : {1e-5f, 1e-3f, 6e-3f, 1.2e-2f, 0.05f, 0.3f}) {
-    const vec3 p(xy.x, xy.y, h), n(0.0f, 0.0f, -1.0f);
-    const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 15);
-    const double exact = polygon_irradiance(q, p, n);
-    EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << "h " << h << " x " << xy.x;
-    // With area sampling, the relative spread at h = 1 mm was > 10 (weights
-    // up to ~1e5); with solid-angle sampling it is the spread of the cosine.
-    EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 15)) / e.mean, 1.5) << "h " << h << " x " << xy.x;
+  for (bool rectangle : {false, true}) {
+    const LightSampler lights = quad_light(rectangle);
+    const std::vector<vec3> q = quad();
+    // Above the middle of a triangle, on the diagonal the two share, and just
+    // outside the quad's edge.
+    for (vec2 xy : {vec2(0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.52f, 0.1f)})
+      // (1.2e-2 and up: triangles sampled in float, see spherical_sampling_area)
+      for (float h : {1e-5f, 1e-3f, 6e-3f, 1.2e-2f, 0.05f, 0.3f}) {
+        const vec3 p(xy.x, xy.y, h), n(0.0f, 0.0f, -1.0f);
+        const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 15);
+        const double exact = polygon_irradiance(q, p, n);
+        EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << shape(rectangle) << " h " << h << " x " << xy.x;
+        // With area sampling, the relative spread at h = 1 mm was > 10 (weights
+        // up to ~1e5); with solid-angle sampling it is the spread of the cosine.
+        EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 15)) / e.mean, 1.5) << shape(rectangle) << " h " << h << " x " << xy.x;
+      }
   }
 }
 
 TEST(LightSampling, FarTriangleLightsAreSampledByAreaWithTheirOwnDensity) {
   // Far away (solid angle below the threshold), area sampling; the density
   // reported and the one pdf_triangle recomputes agree there as well.
-  const LightSampler lights = quad_light();
-  const vec3 p(3.0f, -2.0f, 60.0f), n = glm::normalize(vec3(-3.0f, 2.0f, -60.0f));
-  const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 14);
-  const double exact = polygon_irradiance(quad(), p, n);
-  EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact);
+  for (bool rectangle : {false, true}) {
+    const LightSampler lights = quad_light(rectangle);
+    const vec3 p(3.0f, -2.0f, 60.0f), n = glm::normalize(vec3(-3.0f, 2.0f, -60.0f));
+    const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 14);
+    const double exact = polygon_irradiance(quad(), p, n);
+    EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << shape(rectangle);
+  }
 }
 
 // Between close (solid angle) and far (area sampling, below the solid-angle
@@ -188,21 +213,23 @@ TEST(LightSampling, FarTriangleLightsAreSampledByAreaWithTheirOwnDensity) {
 // irradiance_by_light_sampling), and the weights' spread stays small:
 // bounded by the cosines and the 4x, not by 1/d^2 of a close light.
 TEST(LightSampling, TriangleLightSamplingSwitchesToAreaFromTwoRadiiWithBoundedWeights) {
-  const LightSampler lights = quad_light();
   // The quad's triangles have bounding-sphere radius 0.745 about their
-  // centroids: area sampling from 2.24 from a centroid.
+  // centroids: area sampling from 2.24 from a centroid; the rectangle's is
+  // 0.707 about its middle: from 2.12.
   // Above the light, and just above its plane beside it, where the light is
   // seen at grazing angles and area sampling's weights spread the most.
   std::vector<vec3> points;
   for (float h : {1.0f, 1.8f, 2.2f, 2.6f, 3.5f})
     for (vec2 xy : {vec2(0.0f), vec2(0.9f, 0.3f), vec2(-1.5f, 0.8f)}) points.push_back(vec3(xy, h));
   for (float x : {1.2f, 1.5f, 2.0f, 2.5f, 3.5f}) points.push_back(vec3(x, 0.2f, 0.05f));
-  for (const vec3& p : points) {
-    {
+  for (bool rectangle : {false, true}) {
+    const LightSampler lights = quad_light(rectangle);
+    for (const vec3& p : points) {
       const vec3 n = glm::normalize(-p);
       const Estimate e = irradiance_by_light_sampling(lights, p, n, 1 << 14);
       const double exact = polygon_irradiance(quad(), p, n);
-      const std::string at = "at " + std::to_string(p.x) + " " + std::to_string(p.y) + " " + std::to_string(p.z);
+      const std::string at = std::string(shape(rectangle)) + " at " + std::to_string(p.x) + " " +
+                             std::to_string(p.y) + " " + std::to_string(p.z);
       EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << at;
       EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 14)) / e.mean, 1.0) << at;
       EXPECT_LT(e.max_weight / e.mean, 4.0) << at;
@@ -220,22 +247,22 @@ TEST(LightSampling, TriangleLightSamplingSwitchesToAreaFromTwoRadiiWithBoundedWe
 TEST(LightSampling, PointsInTheLightsPlaneReceiveNothingFromIt) {
   // McGuire's Cornell box light: its plane z = 1.98 is not exact in float.
   const std::vector<vec3> q = {{-0.24f, -0.16f, 1.98f}, {-0.24f, 0.22f, 1.98f}, {0.23f, 0.22f, 1.98f}, {0.23f, -0.16f, 1.98f}};
-  LightSampler lights;
-  lights.build({}, {emissive(q[0], q[1], q[2], 0, vec3(1), vec3(1)), emissive(q[0], q[2], q[3], 1, vec3(1), vec3(1))},
-               nullptr, 10.0f);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  for (vec2 xy : {vec2(0.2f, 0.1f), vec2(-0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.1f, -0.1f), vec2(0.7f, 0.0f)}) {
-    // On the light, as a ray hit would find it.
-    const vec3 p = q[0] + (xy.x + 0.24f) / 0.47f * (q[3] - q[0]) + (xy.y + 0.16f) / 0.38f * (q[1] - q[0]);
-    const vec3 n(0.0f, 0.0f, -1.0f);
-    double sum = 0.0;
-    for (int i = 0; i < 4096; ++i) {
-      LightSample s;
-      if (lights.sample(p, n, vec2(U(rng), U(rng)), s))
-        sum += s.li.x * std::abs(s.wi.z) / s.pdf;  // cosine at a surface lying on the light
+  for (bool rectangle : {false, true}) {
+    const LightSampler lights = quad_light(q, rectangle);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    for (vec2 xy : {vec2(0.2f, 0.1f), vec2(-0.2f, 0.1f), vec2(0.0f, 0.0f), vec2(0.1f, -0.1f), vec2(0.7f, 0.0f)}) {
+      // On the light, as a ray hit would find it.
+      const vec3 p = q[0] + (xy.x + 0.24f) / 0.47f * (q[3] - q[0]) + (xy.y + 0.16f) / 0.38f * (q[1] - q[0]);
+      const vec3 n(0.0f, 0.0f, -1.0f);
+      double sum = 0.0;
+      for (int i = 0; i < 4096; ++i) {
+        LightSample s;
+        if (lights.sample(p, n, vec2(U(rng), U(rng)), s))
+          sum += s.li.x * std::abs(s.wi.z) / s.pdf;  // cosine at a surface lying on the light
+      }
+      EXPECT_LT(sum / 4096, 1e-4) << shape(rectangle) << " x " << xy.x << " y " << xy.y;
     }
-    EXPECT_LT(sum / 4096, 1e-4) << "x " << xy.x << " y " << xy.y;
   }
 }
 
@@ -569,7 +596,10 @@ TEST(LightSampling, RectangleAreaLightCloseByIsSampledBySolidAngle) {
   const std::vector<vec3> corners = {{-0.5f, -0.25f, 0}, {0.5f, -0.25f, 0}, {0.5f, 0.25f, 0}, {-0.5f, 0.25f, 0}};
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  for (vec2 xy : {vec2(0.1f, 0.05f), vec2(0.45f, -0.2f), vec2(0.7f, 0.4f)})
+  // Under it, beside it (0.02 off its edge, where it is seen at grazing
+  // angles and the construction needs double precision close to its plane)
+  // and farther off.
+  for (vec2 xy : {vec2(0.1f, 0.05f), vec2(0.45f, -0.2f), vec2(0.52f, 0.1f), vec2(0.7f, 0.4f)})
     for (float h : {1e-5f, 1e-3f, 0.05f, 0.5f, 3.0f}) {
       const vec3 p(xy.x, xy.y, -h), n(0.0f, 0.0f, 1.0f);
       const int N = 1 << 15;
@@ -598,4 +628,91 @@ TEST(LightSampling, RectangleAreaLightCloseByIsSampledBySolidAngle) {
       const bool under = std::abs(xy.x) < 0.5f && std::abs(xy.y) < 0.25f;
       if (under) EXPECT_LT(se * std::sqrt(double(N)) / mean, 1.5) << "h " << h << " at " << xy.x;
     }
+}
+
+// Scene::collect_emissive_triangles joins the two triangles of an emissive
+// rectangle into one light (EmissiveTriangle::second), sampled uniformly in
+// the rectangle's solid angle; a BSDF-sampled ray that hits either triangle
+// gets the rectangle's density for MIS. Anything that is not exactly such a
+// pair stays triangles.
+TEST(LightSampling, RectangleEmittersAreJoinedAndOtherQuadsAreNot) {
+  struct Case {
+    const char* what;
+    std::vector<vec3> q;  // quad corners (triangles q0 q1 q2, q0 q2 q3)
+    mat4 xf;
+    bool two_materials;
+    size_t entries;  // light sampler entries expected
+  };
+  const mat4 rotate_scale = glm::scale(glm::rotate(mat4(1.0f), 0.7f, glm::normalize(vec3(1, 2, 3))), vec3(2.0f));
+  mat4 shear(1.0f);
+  shear[1][0] = 0.4f;  // x += 0.4 y: the rectangle becomes a parallelogram
+  const std::vector<vec3> rect = {{-0.5f, -0.25f, 1}, {0.5f, -0.25f, 1}, {0.5f, 0.25f, 1}, {-0.5f, 0.25f, 1}};
+  const std::vector<Case> cases = {
+      {"rectangle", rect, mat4(1.0f), false, 1},
+      {"rotated and scaled rectangle", rect, rotate_scale, false, 1},
+      {"sheared rectangle (a parallelogram)", rect, shear, false, 2},
+      {"trapezoid", {{-0.5f, -0.25f, 1}, {0.5f, -0.25f, 1}, {0.3f, 0.25f, 1}, {-0.3f, 0.25f, 1}}, mat4(1.0f), false, 2},
+      {"rectangle of two materials", rect, mat4(1.0f), true, 2},
+  };
+  for (const Case& c : cases) {
+    Scene s;
+    Material a, b;
+    a.emission_front = vec3(1.0f);
+    b.emission_front = vec3(2.0f);
+    s.materials = {a, b};
+    const std::vector<float> pos = {c.q[0].x, c.q[0].y, c.q[0].z, c.q[1].x, c.q[1].y, c.q[1].z,
+                                    c.q[2].x, c.q[2].y, c.q[2].z, c.q[3].x, c.q[3].y, c.q[3].z};
+    const std::vector<uint32_t> idx = {0, 1, 2, 0, 2, 3}, slots = {0, c.two_materials ? 1u : 0u};
+    MeshInput in = fixtures::mesh_input(pos, idx);
+    in.material_slots = slots.data();
+    s.meshes.push_back(build_mesh(in));
+    s.add_instance(0, c.xf, {0, 1});
+    s.commit();
+    const auto& tris = s.light_sampler().triangles();
+    ASSERT_EQ(tris.size(), c.entries) << c.what;
+    if (c.entries != 1) {
+      for (const EmissiveTriangle& t : tris) EXPECT_FALSE(t.rectangle()) << c.what;
+      continue;
+    }
+    const EmissiveTriangle& t = tris[0];
+    ASSERT_TRUE(t.rectangle()) << c.what;
+    EXPECT_NEAR(glm::dot(t.e1, t.e2), 0.0f, 1e-5f) << c.what;
+    const float scale = c.xf == mat4(1.0f) ? 1.0f : 4.0f;  // area
+    EXPECT_NEAR(t.area, 0.5f * scale, 1e-5f) << c.what;
+    // Both triangles lead to it, with the density sample() draws it by.
+    const vec3 light_centre = vec3(c.xf * vec4(0.0f, 0.0f, 1.0f, 1.0f));
+    // In front of it (its front faces +z before the transform), close: by solid angle.
+    const vec3 front = glm::normalize(glm::transpose(glm::inverse(glm::mat3(c.xf))) * vec3(0.0f, 0.0f, 1.0f));
+    const vec3 p = light_centre + 0.3f * front, n = -front;
+    const Estimate e = irradiance_by_light_sampling(s.light_sampler(), p, n, 1 << 14);
+    std::vector<vec3> world;
+    for (const vec3& v : c.q) world.push_back(vec3(c.xf * vec4(v, 1.0f)));
+    const double exact = polygon_irradiance(world, p, n);
+    EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << c.what;
+    const float d0 = s.light_sampler().pdf_triangle(p, n, t.instance, t.prim, 0.3f, 1.0f);
+    const float d1 = s.light_sampler().pdf_triangle(p, n, t.instance, t.second, 0.3f, 1.0f);
+    EXPECT_GT(d0, 0.0f) << c.what;
+    EXPECT_EQ(d0, d1) << c.what;
+  }
+}
+
+// A light BVH of one light picks it wherever the shading point is, without
+// weighing its importance (LightBVH::single_). A one-sided light behind the
+// point, where its importance would be 0, must then give nothing, and in
+// front of it all of its light.
+TEST(LightSampling, TheOnlyLightBehindThePointGivesNothing) {
+  const std::vector<vec3> q = {{-0.5f, -0.5f, 0}, {-0.5f, 0.5f, 0}, {0.5f, 0.5f, 0}, {0.5f, -0.5f, 0}};  // front: -z
+  for (bool rectangle : {false, true}) {
+    const LightSampler lights = quad_light(q, rectangle, vec3(1), vec3(0));
+    ASSERT_LT(lights.triangles()[0].n.z, 0.0f);
+    for (float h : {0.01f, 0.5f, 5.0f}) {
+      // Above it (behind its emitting side) nothing; below it, its light.
+      const Estimate behind = irradiance_by_light_sampling(lights, vec3(0.1f, 0.0f, h), vec3(0, 0, -1), 1 << 12);
+      EXPECT_EQ(behind.mean, 0.0) << shape(rectangle) << " h " << h;
+      const vec3 p(0.1f, 0.0f, -h), n(0.0f, 0.0f, 1.0f);
+      const Estimate front = irradiance_by_light_sampling(lights, p, n, 1 << 14);
+      const double exact = polygon_irradiance(q, p, n);
+      EXPECT_NEAR(front.mean, exact, 4.0 * front.stderr_ + 1e-3 * exact) << shape(rectangle) << " h " << h;
+    }
+  }
 }
