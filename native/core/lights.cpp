@@ -161,9 +161,12 @@ void set_area_from(EmissiveTriangle& t) {
 
 // A point in the emitter's plane (on the emitter itself, or on its other
 // triangles) receives nothing from it; its corners then lie on one great
-// circle and the solid angle is 0 or 2 pi by rounding. Area sampling gives
-// it the zero cosine it should have. Returns its distance h from the plane.
-// (The tolerance scales with a triangle's area: a rectangle's half.)
+// circle and the solid angle is 0 or 2 pi by rounding. Close to the emitter
+// (where the sampling functions below look) sample() gives it no sample: a
+// point on a quad light, in McGuire's box's 1 cm gap above it or seen from
+// the room, traced a shadow ray for a cosine of ~1e-7; pdf_triangle() gives
+// it density 0. Returns its distance h from the plane. (The tolerance scales
+// with a triangle's area: a rectangle's half.)
 bool in_emitter_plane(const EmissiveTriangle& t, const vec3& p, float* h) {
   *h = std::abs(glm::dot(p - t.p0, t.n));
   const float triangle_area = t.rectangle() ? 0.5f * t.area : t.area;
@@ -171,15 +174,16 @@ bool in_emitter_plane(const EmissiveTriangle& t, const vec3& p, float* h) {
 }
 
 // Solid angle of triangle t from p when sample() samples it by solid angle,
-// with its corners as unit vectors from p; 0 when it samples it by area.
-// sample() and pdf_triangle() decide with this one function. near_plane (if
+// with its corners as unit vectors from p; 0 when it samples it by area; -1
+// when p is in its plane close by (no sample, density 0). sample() and
+// pdf_triangle() decide with this one function. near_plane (if
 // given): p is within 1% of its distance to the corners from the
 // triangle's plane, where sample_spherical_triangle needs double precision.
 float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 corners[3], bool* near_plane = nullptr) {
   const vec3 to_centre = p - t.centre;
   if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
   float h;
-  if (in_emitter_plane(t, p, &h)) return 0.0f;
+  if (in_emitter_plane(t, p, &h)) return -1.0f;
   const vec3 a = t.p0 - p, b = a + t.e1, c = a + t.e2;
   const float la = glm::length(a), lb = glm::length(b), lc = glm::length(c);
   if (!(la > 0.0f && lb > 0.0f && lc > 0.0f)) return 0.0f;
@@ -195,7 +199,8 @@ float rectangle_sampling_area(const EmissiveTriangle& t, const vec3& p, Spherica
   const vec3 to_centre = p - t.centre;
   if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
   float h;
-  if (in_emitter_plane(t, p, &h) || !rect->init(p, t.p0, t.e1, t.e2)) return 0.0f;
+  if (in_emitter_plane(t, p, &h)) return -1.0f;
+  if (!rect->init(p, t.p0, t.e1, t.e2)) return 0.0f;
   const float omega = rect->solid_angle();
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
@@ -484,7 +489,8 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
         dist2 = s * s;
       }
     }
-    if (!(omega > 0.0f)) {
+    if (omega < 0.0f) return false;  // in its plane
+    if (omega == 0.0f) {
       const vec2 b = t.rectangle() ? u : sample_uniform_triangle(u);
       q = t.p0 + b.x * t.e1 + b.y * t.e2;
       const vec3 d = q - p;
@@ -627,6 +633,7 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
     vec3 corners[3];
     omega = spherical_sampling_area(e, p, corners);
   }
+  if (omega < 0.0f) return 0.0f;  // in its plane: sample() gives no sample
   return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * e.area);
 }
 
