@@ -1,7 +1,5 @@
 #include "lights.h"
 
-#include <numeric>
-
 #include "background.h"
 
 namespace tessera {
@@ -200,10 +198,23 @@ float rectangle_sampling_area(const EmissiveTriangle& t, const vec3& p, Spherica
   if (glm::dot(to_centre, to_centre) > t.area_from2) return 0.0f;
   float h;
   if (in_emitter_plane(t, p, &h)) return -1.0f;
-  if (!rect->init(p, t.p0, t.e1, t.e2)) return 0.0f;
+  if (!rect->init(p, t.p0, t.e1, t.e2, h)) return 0.0f;
   const float omega = rect->solid_angle();
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
+
+// How sample() samples emitter t from p, and how pdf_triangle() recomputes
+// it: the solid angle it samples uniformly (> 0; with the spherical rectangle
+// or the triangle's corners set up), 0 for by area, -1 for nothing (p in its
+// plane).
+struct EmitterSampling {
+  SphericalRectangle rect;
+  vec3 corners[3];
+  bool near_plane = true;
+  float omega = 0.0f;
+  EmitterSampling(const EmissiveTriangle& t, const vec3& p)
+      : omega(t.rectangle() ? rectangle_sampling_area(t, p, &rect) : spherical_sampling_area(t, p, corners, &near_plane)) {}
+};
 
 // Whether the point q of area light l's plane lies on the light.
 bool on_area_light(const Light& l, const vec3& q) {
@@ -294,7 +305,7 @@ bool area_region(const Light& l, const vec3& p, AreaRegion* r) {
   if (r->kind == AreaRegion::Rectangle) {
     const float d = glm::length(p - r->centre) - glm::length(r->eu + r->ev);
     if (!(d > 0.0f && r->area < kMinSphericalSampleArea * d * d) &&
-        r->rect.init(p, r->centre - r->eu - r->ev, 2.0f * r->eu, 2.0f * r->ev))
+        r->rect.init(p, r->centre - r->eu - r->ev, 2.0f * r->eu, 2.0f * r->ev, h))
       r->by_solid_angle = r->rect.solid_angle() >= kMinSphericalSampleArea;
   }
   return true;
@@ -458,39 +469,31 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   if (entry >= nl) {
     const EmissiveTriangle& t = triangles_[entry - nl];
     // Uniformly in the solid angle the emitter subtends (omega > 0), or by area.
-    float omega;
+    const EmitterSampling how(t, p);
+    const float omega = how.omega;
+    if (omega < 0.0f) return false;  // in its plane
     vec3 q;
     float dist2;
-    if (t.rectangle()) {
-      SphericalRectangle rect;
-      omega = rectangle_sampling_area(t, p, &rect);
-      if (omega > 0.0f) {
-        const vec3 w = rect.sample_offset(u);  // from p to the point
-        dist2 = glm::dot(w, w);
-        if (!(dist2 > 0.0f)) return false;
-        ls.dist = std::sqrt(dist2);
-        ls.wi = w / ls.dist;
-        q = p + w;
-      }
+    if (omega > 0.0f && t.rectangle()) {
+      const vec3 w = how.rect.sample_offset(u);  // from p to the point
+      dist2 = glm::dot(w, w);
+      if (!(dist2 > 0.0f)) return false;
+      ls.dist = std::sqrt(dist2);
+      ls.wi = w / ls.dist;
+      q = p + w;
+    } else if (omega > 0.0f) {
+      vec3 w;
+      const vec3* c = how.corners;
+      if (!sample_spherical_triangle(c[0], c[1], c[2], omega, u, &w, how.near_plane)) return false;
+      // Where the sampled direction meets the triangle's plane.
+      const float denom = glm::dot(w, t.n);
+      const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;
+      if (!(s > 0.0f && std::isfinite(s))) return false;
+      q = p + s * w;
+      ls.wi = w;
+      ls.dist = s;
+      dist2 = s * s;
     } else {
-      vec3 corners[3];
-      bool near_plane = true;
-      omega = spherical_sampling_area(t, p, corners, &near_plane);
-      if (omega > 0.0f) {
-        vec3 w;
-        if (!sample_spherical_triangle(corners[0], corners[1], corners[2], omega, u, &w, near_plane)) return false;
-        // Where the sampled direction meets the triangle's plane.
-        const float denom = glm::dot(w, t.n);
-        const float s = denom != 0.0f ? glm::dot(t.p0 - p, t.n) / denom : 0.0f;
-        if (!(s > 0.0f && std::isfinite(s))) return false;
-        q = p + s * w;
-        ls.wi = w;
-        ls.dist = s;
-        dist2 = s * s;
-      }
-    }
-    if (omega < 0.0f) return false;  // in its plane
-    if (omega == 0.0f) {
       const vec2 b = t.rectangle() ? u : sample_uniform_triangle(u);
       q = t.p0 + b.x * t.e1 + b.y * t.e2;
       const vec3 d = q - p;
@@ -625,14 +628,7 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
   const float pmf = selection_pmf(uint32_t(lights_.size()) + t, p, n);
   if (pmf <= 0.0f) return 0.0f;
   const EmissiveTriangle& e = triangles_[t];
-  float omega;
-  if (e.rectangle()) {
-    SphericalRectangle rect;
-    omega = rectangle_sampling_area(e, p, &rect);
-  } else {
-    vec3 corners[3];
-    omega = spherical_sampling_area(e, p, corners);
-  }
+  const float omega = EmitterSampling(e, p).omega;
   if (omega < 0.0f) return 0.0f;  // in its plane: sample() gives no sample
   return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * e.area);
 }

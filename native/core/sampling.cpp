@@ -107,11 +107,10 @@ vec3 SphericalRectangleT<Real>::sample_offset(vec2 u) const {
 template struct SphericalRectangleT<float>;
 template struct SphericalRectangleT<double>;
 
-bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey) {
+bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height) {
   o_ = o;
-  const vec3 n = glm::cross(ex, ey), half = 0.5f * (ex + ey), to_middle = corner + half - o;
-  const float h = std::abs(glm::dot(to_middle, n)) / glm::length(n);
-  near_plane_ = h < 0.01f * (glm::length(to_middle) + glm::length(half));
+  const vec3 half = 0.5f * (ex + ey);
+  near_plane_ = std::abs(height) < 0.01f * (glm::length(corner + half - o) + glm::length(half));
   return near_plane_ ? d_.init(o, corner, ex, ey) : f_.init(o, corner, ex, ey);
 }
 

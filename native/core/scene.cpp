@@ -49,7 +49,6 @@ void join_rectangles(std::vector<EmissiveTriangle>& out, size_t first, const std
                      const std::vector<uint32_t>& material) {
   struct Corner {
     vec3 r, a, b;  // the right angle's vertex and its two edges (world)
-    int at = -1;   // its corner, -1: no right angle
   };
   const size_t n = out.size() - first;
   std::vector<Corner> corner(n);
@@ -61,7 +60,7 @@ void join_rectangles(std::vector<EmissiveTriangle>& out, size_t first, const std
     for (int c = 0; c < 3; ++c) {
       const vec3 &a = at_corner[c][1], &b = at_corner[c][2];
       if (!(std::abs(glm::dot(a, b)) <= 1e-5f * glm::length(a) * glm::length(b))) continue;
-      corner[j] = {at_corner[c][0], a, b, c};
+      corner[j] = {at_corner[c][0], a, b};
       vec3 h0 = local[j][(c + 1) % 3], h1 = local[j][(c + 2) % 3];
       std::array<uint32_t, 7> key{material[j]};
       if (std::lexicographical_compare(&h1.x, &h1.x + 3, &h0.x, &h0.x + 3)) std::swap(h0, h1);

@@ -527,12 +527,6 @@ PYBIND11_MODULE(_core, m) {
                                for (const EmissiveTriangle& t : s.light_sampler().triangles()) n += t.rectangle() ? 2 : 1;
                                return n;
                              })
-      .def_property_readonly("num_emissive_rectangles",
-                             [](const Scene& s) {
-                               size_t n = 0;
-                               for (const EmissiveTriangle& t : s.light_sampler().triangles()) n += t.rectangle();
-                               return n;
-                             })
       .def_property_readonly("memory_bytes", &Scene::memory_bytes)
       .def_property_readonly("tlas_build_seconds", [](const Scene& s) { return s.build_seconds; });
 
