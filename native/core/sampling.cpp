@@ -77,10 +77,14 @@ bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const ve
   const Real z2 = z0 * z0;
   const Real l0 = std::sqrt(z2 + y0 * y0), l1 = std::sqrt(z2 + x1 * x1);
   const Real l2 = std::sqrt(z2 + y1 * y1), l3 = std::sqrt(z2 + x0 * x0);
-  auto angle = [](Real c) { return std::acos(std::clamp(c, Real(-1), Real(1))); };
+  auto angle = [](Real c) {
+    if constexpr (std::is_same_v<Real, float>) return acos_poly(c);
+    return std::acos(std::clamp(c, Real(-1), Real(1)));
+  };
   const Real g0 = angle(x1 * y0 / (l0 * l1)), g1 = angle(-x1 * y1 / (l1 * l2));
   const Real g2 = angle(x0 * y1 / (l2 * l3)), g3 = angle(-x0 * y0 / (l3 * l0));
   b0 = -y0 / l0, b1 = y1 / l2;
+  q = z2 / (l0 * l0);  // 1 - b0^2, without its cancellation
   k = Real(2) * Real(M_PI) - g2 - g3;
   S = g0 + g1 - k;  // the angle excess: the solid angle
   return S > 0 && std::isfinite(S) && std::isfinite(float(S));
@@ -88,19 +92,24 @@ bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const ve
 
 template <typename Real>
 vec3 SphericalRectangleT<Real>::sample_offset(vec2 u) const {
-  // u.x: the sub-rectangle [x0, xu] of solid angle u.x S, solved for xu.
+  // u.x: the sub-rectangle [x0, xu] of solid angle u.x S, solved for xu. The
+  // paper's fu = (cos au b0 - b1) / sin au, cu = sign(fu) / sqrt(fu^2 + b0^2),
+  // xu = -cu z0 / sqrt(1 - cu^2) folded into one square root and one
+  // division, with 1 - b0^2 = (z0 / l0)^2 = q (init): xu = -z0 sign(m) sin au /
+  // sqrt(m^2 - q sin^2 au), m = cos au b0 - b1. The same cancellation where
+  // |cu| is near 1 as 1 - cu^2 had, on a chain of two long operations
+  // instead of five.
   const Real au = Real(u.x) * S + k;
   const Real sin_au = std::sin(au), cos_au = std::cos(au);
-  const Real fu = (cos_au * b0 - b1) / sin_au;
-  Real cu = std::copysign(Real(1), fu) / std::sqrt(fu * fu + b0 * b0);
-  cu = std::clamp(std::isfinite(cu) ? cu : Real(0), Real(-1), Real(1));
-  Real xu = -(cu * z0) / std::sqrt(std::max(Real(0), Real(1) - cu * cu));
+  const Real m = cos_au * b0 - b1;
+  Real xu = -(z0 * sin_au) * std::copysign(Real(1), m) / std::sqrt(std::max(Real(0), m * m - q * sin_au * sin_au));
   xu = std::clamp(std::isfinite(xu) ? xu : x1, x0, x1);
-  // u.y: uniform in the height h (cosine to the y axis) along that column.
-  const Real dd = std::sqrt(xu * xu + z0 * z0);
-  const Real h0 = y0 / std::sqrt(dd * dd + y0 * y0), h1 = y1 / std::sqrt(dd * dd + y1 * y1);
+  // u.y: uniform in the height h (cosine to the y axis) along that column,
+  // yv = hv dd / sqrt(1 - hv^2) with dd^2 = xu^2 + z0^2.
+  const Real dd2 = xu * xu + z0 * z0;
+  const Real h0 = y0 / std::sqrt(dd2 + y0 * y0), h1 = y1 / std::sqrt(dd2 + y1 * y1);
   const Real hv = h0 + Real(u.y) * (h1 - h0), hv2 = hv * hv;
-  const Real yv = hv2 < Real(1) - Real(1e-6) ? hv * dd / std::sqrt(Real(1) - hv2) : y1;
+  const Real yv = hv2 < Real(1) - Real(1e-6) ? hv * std::sqrt(dd2 / (Real(1) - hv2)) : y1;
   return vec3(xu * x + std::clamp(yv, y0, y1) * y + z0 * z);
 }
 
