@@ -23,11 +23,14 @@ void Texture::set_bytes(const float* rgba, int w, int h, bool is_srgb) {
   texels.clear();
   bytes.resize(size_t(w) * size_t(h));
   tbb::parallel_for(tbb::blocked_range<size_t>(0, bytes.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+    // max(0, x) first: NaN becomes 0. The value is in [0.5, 255.5], so the
+    // signed conversion truncates as the unsigned one would, and the loop
+    // vectorises (SSE2 has no float-to-unsigned conversion).
     for (size_t i = r.begin(); i < r.end(); ++i) {
       uint32_t packed = 0;
       for (int c = 0; c < 4; ++c) {
-        const float v = std::clamp(rgba[4 * i + c], 0.0f, 1.0f) * 255.0f + 0.5f;
-        packed |= uint32_t(v) << (8 * c);
+        const float v = std::min(std::max(0.0f, rgba[4 * i + c]), 1.0f) * 255.0f + 0.5f;
+        packed |= uint32_t(int32_t(v)) << (8 * c);
       }
       bytes[i] = packed;
     }
