@@ -251,20 +251,26 @@ TEST(LightSampling, FarTriangleLightsAreSampledByAreaWithTheirOwnDensity) {
 // Between close (solid angle) and far (area sampling, below the solid-angle
 // threshold): from two bounding-sphere radii of a triangle on, lights.cpp
 // samples it by area, where the 1/distance^2 of the weights varies by at
-// most 4x over the light. Across that switch the irradiance stays exact,
-// sample() and pdf_triangle() report the same density (checked inside
-// irradiance_by_light_sampling), and the weights' spread stays small:
-// bounded by the cosines and the 4x, not by 1/d^2 of a close light.
-TEST(LightSampling, TriangleLightSamplingSwitchesToAreaFromTwoRadiiWithBoundedWeights) {
+// most 4x over the light; a rectangle also from its bounding sphere on, d
+// away from it, where it is seen from above (not at a grazing angle: there
+// area weights spread, lights.cpp), and that factor is (1 + 2r / d)^2. The
+// grazing points 0.1 and 0.3 beside the rectangle's edge are where its
+// bounding sphere alone as the rule gave a relative deviation per sample of
+// 1.4 (the test's bound is 1). Across that switch the
+// irradiance stays exact, sample() and pdf_triangle() report the same
+// density (checked inside irradiance_by_light_sampling), and the weights'
+// spread stays small: bounded by the cosines and that factor, not by 1/d^2
+// of a close light.
+TEST(LightSampling, LightSamplingSwitchesToAreaWithBoundedWeights) {
   // The quad's triangles have bounding-sphere radius 0.745 about their
   // centroids: area sampling from 2.24 from a centroid; the rectangle's is
-  // 0.707 about its middle: from 2.12.
+  // 0.707 about its middle (the origin): from there on where seen from above.
   // Above the light, and just above its plane beside it, where the light is
   // seen at grazing angles and area sampling's weights spread the most.
   std::vector<vec3> points;
-  for (float h : {1.0f, 1.8f, 2.2f, 2.6f, 3.5f})
+  for (float h : {0.6f, 0.75f, 1.0f, 1.8f, 2.2f, 2.6f, 3.5f})
     for (vec2 xy : {vec2(0.0f), vec2(0.9f, 0.3f), vec2(-1.5f, 0.8f)}) points.push_back(vec3(xy, h));
-  for (float x : {1.2f, 1.5f, 2.0f, 2.5f, 3.5f}) points.push_back(vec3(x, 0.2f, 0.05f));
+  for (float x : {0.6f, 0.8f, 1.2f, 1.5f, 2.0f, 2.5f, 3.5f}) points.push_back(vec3(x, 0.2f, 0.05f));
   for (bool rectangle : {false, true}) {
     const LightSampler lights = quad_light(rectangle);
     for (const vec3& p : points) {
@@ -275,7 +281,9 @@ TEST(LightSampling, TriangleLightSamplingSwitchesToAreaFromTwoRadiiWithBoundedWe
                              std::to_string(p.y) + " " + std::to_string(p.z);
       EXPECT_NEAR(e.mean, exact, 4.0 * e.stderr_ + 1e-3 * exact) << at;
       EXPECT_LT(e.stderr_ * std::sqrt(double(1 << 14)) / e.mean, 1.0) << at;
-      EXPECT_LT(e.max_weight / e.mean, 4.0) << at;
+      const double r = std::sqrt(0.5), d = glm::length(p) - r;
+      const double spread = rectangle && d > 0.0 ? std::max(4.0, (1.0 + 2.0 * r / d) * (1.0 + 2.0 * r / d)) : 4.0;
+      EXPECT_LT(e.max_weight / e.mean, spread) << at;
     }
   }
 }
