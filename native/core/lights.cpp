@@ -211,9 +211,9 @@ float spherical_sampling_area(const EmissiveTriangle& t, const vec3& p, vec3 cor
 
 // The same decision as spherical_sampling_area for a rectangle emitter,
 // with its spherical rectangle from p.
-// The plane comes first here: a rectangle is sampled by area from its
-// bounding sphere on, which leaves points of its plane close by (the ceiling
-// around a light set into it) outside.
+// The plane comes first here, before the distance: points of the light's
+// plane beyond the solid-angle region (the ceiling around a light set into
+// it) get no area sample with a cosine of 1e-7 either.
 float rectangle_sampling_area(const EmissiveTriangle& t, const vec3& p, SphericalRectangle* rect) {
   float h;
   if (in_emitter_plane(t, p, &h)) return -1.0f;
