@@ -158,7 +158,9 @@ constexpr float kRectangleGrazing2 = 0.25f;
 // samples t by area: its bounding sphere (centre, radius r) is then d > 0 away with
 // area < kMinSphericalSampleArea d^2 or d >= kSolidAngleWithin r, i.e. from
 // r + min(sqrt(area / kMinSphericalSampleArea), kSolidAngleWithin r) on. A
-// rectangle's sphere is about its middle, through its corners.
+// rectangle's sphere is about its middle, through its corners. And the
+// size's part of in_emitter_plane's tolerance, so that no light sample takes
+// a square root for it.
 void set_area_from(EmissiveTriangle& t) {
   float r2;
   if (t.rectangle()) {
@@ -173,6 +175,7 @@ void set_area_from(EmissiveTriangle& t) {
   const float r = std::sqrt(r2);
   const float d = r + std::min(std::sqrt(t.area / kMinSphericalSampleArea), kSolidAngleWithin * r);
   t.area_from2 = d * d;
+  t.plane_tolerance = 1e-5f * std::sqrt(t.rectangle() ? 0.5f * t.area : t.area);
 }
 
 // A point in the emitter's plane (on the emitter itself, or on its other
@@ -185,8 +188,7 @@ void set_area_from(EmissiveTriangle& t) {
 // with a triangle's area: a rectangle's half.)
 bool in_emitter_plane(const EmissiveTriangle& t, const vec3& p, float* h) {
   *h = std::abs(glm::dot(p - t.p0, t.n));
-  const float triangle_area = t.rectangle() ? 0.5f * t.area : t.area;
-  return *h <= 1e-5f * std::sqrt(triangle_area) + 1e-6f * (max_component(abs(p)) + max_component(abs(t.p0)));
+  return *h <= t.plane_tolerance + 1e-6f * (max_component(abs(p)) + max_component(abs(t.p0)));
 }
 
 // Solid angle of triangle t from p when sample() samples it by solid angle,
@@ -222,8 +224,9 @@ float rectangle_sampling_area(const EmissiveTriangle& t, const vec3& p, Spherica
   if (dist2 > t.area_from2) return 0.0f;
   // Outside the bounding sphere and seen from above rather than at a grazing angle: by area.
   const vec3 diagonal = t.e1 + t.e2;
-  if (dist2 > 0.25f * glm::dot(diagonal, diagonal) && h * h > kRectangleGrazing2 * dist2) return 0.0f;
-  if (!rect->init(p, t.p0, t.e1, t.e2, h)) return 0.0f;
+  const float radius2 = 0.25f * glm::dot(diagonal, diagonal);
+  if (dist2 > radius2 && h * h > kRectangleGrazing2 * dist2) return 0.0f;
+  if (!rect->init(p, t.p0, t.e1, t.e2, h, std::sqrt(dist2) + std::sqrt(radius2))) return 0.0f;
   const float omega = rect->solid_angle();
   return omega >= kMinSphericalSampleArea && std::isfinite(omega) ? omega : 0.0f;
 }
@@ -328,9 +331,10 @@ bool area_region(const Light& l, const vec3& p, AreaRegion* r) {
   if (!(r->area > 0.0f)) return false;
   r->by_solid_angle = false;
   if (r->kind == AreaRegion::Rectangle) {
-    const float d = glm::length(p - r->centre) - glm::length(r->eu + r->ev);
+    const float to_middle = glm::length(p - r->centre), radius = glm::length(r->eu + r->ev);
+    const float d = to_middle - radius;
     if (!(d > 0.0f && r->area < kMinSphericalSampleArea * d * d) &&
-        r->rect.init(p, r->centre - r->eu - r->ev, 2.0f * r->eu, 2.0f * r->ev, h))
+        r->rect.init(p, r->centre - r->eu - r->ev, 2.0f * r->eu, 2.0f * r->ev, h, to_middle + radius))
       r->by_solid_angle = r->rect.solid_angle() >= kMinSphericalSampleArea;
   }
   return true;

@@ -86,6 +86,9 @@ struct EmissiveTriangle {
   // spherical_sampling_area), next to the corners that sampling reads.
   vec3 centre{0.0f};
   float area_from2 = 0.0f;
+  // Set by LightSampler::build: the part of in_emitter_plane's tolerance that
+  // scales with the size, 1e-5 sqrt(area of one triangle) (lights.cpp).
+  float plane_tolerance = 0.0f;
   uint8_t visibility = kVisibleToAll;  // its instance's (visibility.h)
   uint32_t second = kAlone;  // a rectangle: its other triangle (leaf order)
   bool rectangle() const { return second != kAlone; }

@@ -78,8 +78,11 @@ bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const ve
   const Real l0 = std::sqrt(z2 + y0 * y0), l1 = std::sqrt(z2 + x1 * x1);
   const Real l2 = std::sqrt(z2 + y1 * y1), l3 = std::sqrt(z2 + x0 * x0);
   auto angle = [](Real c) {
-    if constexpr (std::is_same_v<Real, float>) return acos_poly(c);
-    return std::acos(std::clamp(c, Real(-1), Real(1)));
+    if constexpr (std::is_same_v<Real, float>) {
+      return acos_poly(c);
+    } else {
+      return std::acos(std::clamp(c, Real(-1), Real(1)));
+    }
   };
   const Real g0 = angle(x1 * y0 / (l0 * l1)), g1 = angle(-x1 * y1 / (l1 * l2));
   const Real g2 = angle(x0 * y1 / (l2 * l3)), g3 = angle(-x0 * y0 / (l3 * l0));
@@ -116,10 +119,10 @@ vec3 SphericalRectangleT<Real>::sample_offset(vec2 u) const {
 template struct SphericalRectangleT<float>;
 template struct SphericalRectangleT<double>;
 
-bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height) {
+bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height,
+                              float reach) {
   o_ = o;
-  const vec3 half = 0.5f * (ex + ey);
-  near_plane_ = std::abs(height) < 0.01f * (glm::length(corner + half - o) + glm::length(half));
+  near_plane_ = std::abs(height) < 0.01f * reach;
   return near_plane_ ? d_.init(o, corner, ex, ey) : f_.init(o, corner, ex, ey);
 }
 

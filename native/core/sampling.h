@@ -118,10 +118,11 @@ struct SphericalRectangleT {
 // grazing angles, the sample's 1 - cu^2 cancels (in float, a point 1e-5 from
 // the plane of a 1 x 0.5 light and 0.02 beside it was sent twice its
 // irradiance). The same rule as for spherical triangles. height: o's
-// distance from the rectangle's plane, which the callers have at hand.
+// distance from the rectangle's plane; reach: o's distance from its middle
+// plus half its diagonal (both of which the callers have at hand).
 class SphericalRectangle {
  public:
-  bool init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height);
+  bool init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height, float reach);
   float solid_angle() const { return near_plane_ ? d_.solid_angle() : f_.solid_angle(); }
   vec3 sample(vec2 u) const { return o_ + sample_offset(u); }
   vec3 sample_offset(vec2 u) const { return near_plane_ ? d_.sample_offset(u) : f_.sample_offset(u); }
