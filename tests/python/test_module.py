@@ -138,7 +138,11 @@ def test_live_figures_are_taken_at_the_last_update():
     session.start()
     seen = []
     while not session.wait(0.02):
-        seen.append((session.elapsed_seconds, session.update_seconds, session.remaining_seconds))
+        # update_seconds before elapsed_seconds: a pass that ends between the
+        # two reads would otherwise give an update later than the elapsed time
+        # read before it (CI saw exactly that once).
+        u = session.update_seconds
+        seen.append((session.elapsed_seconds, u, session.remaining_seconds))
     assert all(u <= e + 1e-9 for e, u, _ in seen)
     assert any(u > 0 for _, u, _ in seen)
     # Under a 1 s time limit the remaining time never exceeds what is left of it.
