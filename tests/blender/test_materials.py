@@ -56,6 +56,24 @@ def test_texture_through_unsupported_nodes_is_named_in_a_warning():
     assert "Textured" in warnings and "average colour" in warnings, warnings
 
 
+def test_texture_average_is_read_again_at_every_render():
+    """A texture Tessera approximates by its average colour follows the image
+    when it changes between renders (painted, reloaded). The averages were
+    kept across renders by the image's address: this image kept its first
+    average, and a new image at a freed one's address got that one's (a
+    bpy 4.5 CI run lost the warning of the test above that way)."""
+    scene = textured_plane_scene(scale=2.0)
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    img = bpy.data.images["grid"]
+    # The middle of the image, on the plane (the white world is around it).
+    first = render(scene, 'TESSERA', samples=4, bounces=0)[6:10, 6:10, :3].reshape(-1, 3).mean(axis=0)
+    assert first[1] > 0.05 and first[2] > 0.05, first  # the colour grid has every hue
+    img.pixels.foreach_set(np.tile(np.array([1.0, 0.0, 0.0, 1.0], dtype=np.float32), img.size[0] * img.size[1]))
+    img.update()
+    red = render(scene, 'TESSERA', samples=4, bounces=0)[6:10, 6:10, :3].reshape(-1, 3).mean(axis=0)
+    assert red[0] > 0.2 and red[1] < 1e-3 and red[2] < 1e-3, (first, red)
+
+
 @pytest.mark.parametrize("roughness", [0.0, 0.2, 0.5, 1.0])
 @pytest.mark.parametrize("metallic", [0.0, 1.0])
 def test_principled_roughness_ladder_matches_cycles(roughness, metallic):

@@ -34,26 +34,31 @@ def output_node(tree, kind):
     return outputs[0] if outputs else None
 
 
-_image_cache = {}
+class ImageAverages:
+    """Mean linear RGBA of image texture nodes' images, or None, for one
+    export: each image is read once per render. Not kept across renders: an
+    image painted or reloaded since would keep its old average, and Blender
+    gives a new image the address of one freed before, so a cache keyed by
+    it handed one image's average to another."""
 
+    def __init__(self):
+        self._by_image = {}
 
-def image_average(node):
-    """Mean linear RGBA of an image texture node's image, or None."""
-    img = node.image
-    if img is None:
-        return None
-    key = img.as_pointer()
-    if key not in _image_cache:
-        try:
-            px = image_pixels(img)
-        except RuntimeError:
-            px = None
-        _remember_average(img, px)
-    return _image_cache[key]
+    def __call__(self, node):
+        img = node.image
+        if img is None:
+            return None
+        key = img.as_pointer()
+        if key not in self._by_image:
+            try:
+                px = image_pixels(img)
+            except RuntimeError:
+                px = None
+            self.remember(img, None if px is None else px.reshape(-1, 4).mean(axis=0))
+        return self._by_image[key]
 
-
-def _remember_average(img, px):
-    _image_cache[img.as_pointer()] = None if px is None else tuple(float(x) for x in px.reshape(-1, 4).mean(axis=0))
+    def remember(self, img, rgba):
+        self._by_image[img.as_pointer()] = None if rgba is None else tuple(float(x) for x in rgba)
 
 
 def image_read_back(img):
@@ -121,6 +126,7 @@ class MaterialCache:
         self.ids = {}
         self.textured = set()
         self.textures = {}
+        self.averages = ImageAverages()
 
     def get(self, material):
         """Core material index of a Blender material (0, the default grey, for None)."""
@@ -128,7 +134,7 @@ class MaterialCache:
             return 0
         key = material.as_pointer()
         if key not in self.ids:
-            params = material_params(material, self.report, self.texture)
+            params = material_params(material, self.report, self.texture, self.averages)
             if params.get("textures"):
                 self.textured.add(key)
             self.ids[key] = self.scene.add_material(**params)
@@ -159,13 +165,14 @@ class MaterialCache:
                                                self.diffuse_texture_blur)
                 self.textures[key] = index
                 # The material's constant needs the average next: from the core's texels.
-                _image_cache[img.as_pointer()] = self.scene.texture_average(index)
+                self.averages.remember(img, self.scene.texture_average(index))
         return self.textures[key]
 
 
-def material_params(material, report, texture=None):
-    front = _side_params(material, report, backfacing=False, texture=texture)
-    back = _side_params(material, report, backfacing=True, texture=texture)
+def material_params(material, report, texture=None, image_average=None):
+    image_average = image_average or ImageAverages()
+    front = _side_params(material, report, False, texture, image_average)
+    back = _side_params(material, report, True, texture, image_average)
     if _surface_key(front) != _surface_key(back):
         report.warn(material.name, f"Material '{material.name}': its surface shaders differ between front and back "
                                    f"faces (Geometry > Backfacing reaching a shader mix); Tessera shades both sides "
@@ -473,7 +480,7 @@ class _Flattener:
         return closures
 
 
-def _side_params(material, report, backfacing, texture=None):
+def _side_params(material, report, backfacing, texture, image_average):
     params = dict(base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5, specular=0.5, ior=1.45,
                   transmission=0.0, emission_front=(0.0, 0.0, 0.0), model=MODEL)
     # Blender 5.0 always uses a material's nodes (use_nodes is deprecated there, to go in 6.0).
