@@ -109,6 +109,7 @@ def render_options(settings, region):
     opt.rr_depth = settings.rr_depth
     opt.clamp_direct = settings.clamp_direct
     opt.clamp_indirect = settings.clamp_indirect
+    opt.light_threshold = settings.light_threshold
     opt.adaptive_threshold = settings.adaptive_threshold
     opt.adaptive_min_samples = settings.adaptive_min_samples
     opt.time_limit = settings.time_limit

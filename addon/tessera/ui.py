@@ -47,6 +47,7 @@ class TESSERA_PT_sampling(TesseraPanel, bpy.types.Panel):
         sub.prop(settings, "estimate_error")
         layout.prop(settings, "filter_width")
         layout.prop(settings, "max_camera_rays")
+        layout.prop(settings, "light_threshold")
 
 
 class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):

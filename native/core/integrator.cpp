@@ -43,6 +43,20 @@ vec3 shadow_transmittance(const Scene& scene, vec3 o, const vec3& d, float tmax,
   }
 }
 
+// Cycles' Light Threshold (light_sample_terminate): a light sample whose
+// contribution before the path's throughput, f Li weight, has its largest
+// component below the threshold is traced with probability max / threshold,
+// and `weight` divided by that (Russian roulette on shadow rays: the same
+// expectation, fewer rays to lights that add little). 0: every sample.
+inline bool light_threshold_survives(const vec3& f_li, float& weight, float threshold, float u) {
+  if (!(threshold > 0.0f)) return true;
+  const float p = max_component(f_li) * weight / threshold;
+  if (p >= 1.0f) return true;
+  if (!(u < p)) return false;
+  weight /= p;
+  return true;
+}
+
 // The solid-angle density of hittable light `light` for MIS, as seen from the
 // last scattering vertex, mis_t behind the ray's origin on the same line (the
 // ray has since passed transparent surfaces; Cycles moves the origin back by
@@ -232,6 +246,10 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
 
     // Next-event estimation.
     const vec2 u_light = sampler.get_2d();
+    // The lobe choice's number (below), and beside it the light threshold's:
+    // one Sobol dimension's two coordinates, drawn in the same order as
+    // before (get_1d's number is get_2d's first coordinate).
+    const vec2 u_lobe_threshold = sampler.get_2d();
     LightSample ls;
     if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
       float bsdf_pdf;
@@ -246,27 +264,26 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
         float tmax = std::isinf(ls.dist) ? kInf : (ls.dist - glm::dot(origin - si.p, ls.wi)) * (1.0f - 1e-4f);
         // A light with Cast Shadow off is not shadowed.
         const bool shadowed = ls.visibility & kRayShadow;
-        if (!features.transparent || !shadowed) {
-          counters.rays += shadowed;
-          if (!shadowed || !scene.occluded(origin, ls.wi, tmax)) {
-            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
-            add(bounce, beta * f * ls.li * (w / ls.pdf));
+        const float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
+        float weight = w / ls.pdf;
+        if (shadowed && light_threshold_survives(f * ls.li, weight, options.light_threshold, u_lobe_threshold.y)) {
+          if (!features.transparent) {
+            ++counters.rays;
+            if (!scene.occluded(origin, ls.wi, tmax)) add(bounce, beta * f * ls.li * weight);
+          } else {
+            const vec3 tr = shadow_transmittance(scene, origin, ls.wi, tmax,
+                                                 options.max_transparent_bounces - transparent_bounces, counters);
+            if (max_component(tr) > 0.0f) add(bounce, beta * f * tr * ls.li * weight);
           }
-        } else {
-          const vec3 tr = shadow_transmittance(scene, origin, ls.wi, tmax,
-                                               options.max_transparent_bounces - transparent_bounces, counters);
-          if (max_component(tr) > 0.0f) {
-            float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf);
-            add(bounce, beta * f * tr * ls.li * (w / ls.pdf));
-          }
+        } else if (!shadowed) {
+          add(bounce, beta * f * ls.li * weight);
         }
       }
     }
 
     // Continue the path by sampling the BSDF.
     BSDFSample bs;
-    const float u_lobe = sampler.get_1d();
-    if (!bsdf.sample_f(u_lobe, sampler.get_2d(), bs)) break;
+    if (!bsdf.sample_f(u_lobe_threshold.x, sampler.get_2d(), bs)) break;
     if (bs.kind == BSDFSample::kTransparent) {
       // Straight on through the surface: not a bounce, and the MIS state of
       // the last scattering vertex is kept (Cycles' path_state_next for

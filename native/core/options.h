@@ -20,6 +20,10 @@ struct RenderOptions {
   // default 8): the surface after the last one adds only its emission.
   int max_transparent_bounces = 8;
   int rr_depth = 3;      // Russian roulette from this bounce on (integrator.cpp)
+  // Cycles' Light Threshold: light samples that would add less than this
+  // (before the path's throughput) trace their shadow ray by Russian
+  // roulette (integrator.cpp, light_threshold_survives). 0: all of them.
+  float light_threshold = 0.01f;
   // Cycles' sample clamping: a contribution's largest component is scaled
   // down to this; direct = camera-visible emission and lighting at the first
   // hit, indirect = the rest. 0: off (integrator.cpp).

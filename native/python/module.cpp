@@ -201,6 +201,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("rr_depth", &RenderOptions::rr_depth)
       .def_readwrite("clamp_direct", &RenderOptions::clamp_direct)
       .def_readwrite("clamp_indirect", &RenderOptions::clamp_indirect)
+      .def_readwrite("light_threshold", &RenderOptions::light_threshold)
       .def_readwrite("adaptive_threshold", &RenderOptions::adaptive_threshold)
       .def_readwrite("adaptive_min_samples", &RenderOptions::adaptive_min_samples)
       .def_readwrite("time_limit", &RenderOptions::time_limit)

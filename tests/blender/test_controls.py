@@ -26,11 +26,26 @@ def test_presets_set_the_controls(cornell):
     assert t.adaptive_threshold > 0 and t.max_bounces == 4 and t.samples == 32
     t.preset = 'REFERENCE'
     assert t.adaptive_threshold == 0 and t.clamp_indirect == 0 and t.samples >= 4096
-    assert t.diffuse_texture_blur == 0
+    assert t.diffuse_texture_blur == 0 and t.light_threshold == 0
     import bpy
     bpy.ops.tessera.apply_preset(preset='PRODUCTION')
     assert t.max_diffuse_bounces == 4 and t.clamp_indirect == 10
     assert t.diffuse_texture_blur == pytest.approx(1 / 64)
+    assert t.light_threshold == pytest.approx(0.01)  # Cycles' default
+
+
+def test_light_threshold_reaches_the_core_and_keeps_the_mean(cornell):
+    # McGuire's box: above 0.3 many light samples fall under the threshold.
+    cornell.tessera.estimate_error = False
+    cornell.tessera.light_threshold = 0.0
+    every = render(cornell, 'TESSERA', samples=64)[..., :3]
+    rays_every = stats()["rays"]
+    cornell.tessera.light_threshold = 1.0
+    some = render(cornell, 'TESSERA', samples=64)[..., :3]
+    print(f"light threshold 1: rays {stats()['rays'] / rays_every:.3f} of all, mean {some.mean():.5f} against {every.mean():.5f}")
+    assert stats()["rays"] < 0.97 * rays_every
+    assert not np.array_equal(every, some)
+    assert some.mean() == pytest.approx(every.mean(), rel=0.02)
 
 
 def test_diffuse_texture_blur_reaches_the_textures_and_keeps_the_mean():

@@ -117,6 +117,34 @@ TEST(Controls, ClampingBoundsPixelValues) {
   for (float v : render(s, opt).px) EXPECT_LE(v, bound6 + 1e-5f);
 }
 
+// Cycles' Light Threshold: light samples adding less than the threshold
+// trace their shadow ray with probability (their contribution / threshold)
+// and count for its inverse, so the image keeps its mean with fewer rays;
+// 0 traces every one, and a threshold below every sample's contribution
+// changes nothing (the number deciding it is a coordinate no other choice
+// reads).
+TEST(Controls, LightThresholdSkipsWeakShadowRaysAndKeepsTheMean) {
+  Scene s;
+  fixtures::build_cornell_box(s, 32, 32);
+  RenderOptions opt;
+  opt.samples = 256;
+  opt.estimate_error = false;
+  opt.light_threshold = 0.0f;
+  const Result all = render(s, opt);
+  opt.light_threshold = 1e-12f;
+  const Result tiny = render(s, opt);
+  EXPECT_EQ(0, std::memcmp(all.px.data(), tiny.px.data(), all.px.size() * sizeof(float)));
+  EXPECT_EQ(all.stats.rays, tiny.stats.rays);
+  opt.light_threshold = 1.0f;  // about the box's typical light sample
+  const Result some = render(s, opt);
+  EXPECT_LT(double(some.stats.rays), 0.97 * double(all.stats.rays));
+  const double m_all = mean_rgb(all.px), m_some = mean_rgb(some.px);
+  std::printf("light threshold 1: rays %.3f of all, mean %.5f against %.5f\n", double(some.stats.rays) / double(all.stats.rays), m_some, m_all);
+  EXPECT_NEAR(m_some, m_all, 0.01 * m_all);
+  // Not the same image: the skipped samples' share went to the kept ones.
+  EXPECT_NE(0, std::memcmp(all.px.data(), some.px.data(), all.px.size() * sizeof(float)));
+}
+
 TEST(Controls, TimeLimitStopsTheRender) {
   Scene s;
   fixtures::build_cornell_box(s, 32, 32);
