@@ -171,9 +171,11 @@ void Scene::rebase_on_camera() {
   render_origin = vec3(glm::dvec3(render_origin) + glm::dvec3(c));
 }
 
-// Instances whose mesh no other instance places, if there are at least two
-// (one keeps its own BLAS: merging would only copy it), move into merged_;
-// tlas_items receives the others. Instances whose transform has no finite
+// Instances whose mesh no other instance places move into merged_, if
+// there are at least two or the one has a transform (a lone instance
+// placed as its mesh is would only be copied; a transformed one, merged,
+// takes no ray into object space and no hit back to world space: McGuire's
+// Cornell box, one object); tlas_items receives the others. Instances whose transform has no finite
 // inverse stay: the TLAS skips them, as it always did.
 void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   merged_ = Mesh{};
@@ -195,7 +197,7 @@ void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
       tlas_items.push_back(i);
     }
   }
-  if (single.size() < 2) {
+  if (single.empty() || (single.size() == 1 && instances[single[0]].identity)) {
     tlas_items.insert(tlas_items.end(), single.begin(), single.end());
     return;
   }

@@ -113,6 +113,42 @@ TEST(Instancing, InstancedAndFlattenedScenesGiveTheSameImage) {
   EXPECT_LE(differ, a.t.size() / 2000) << differ << " of " << a.t.size() << " pixels differ";
 }
 
+// A mesh placed once with a transform goes into the render-space BLAS as
+// well (no ray into object space, no hit back to world space per ray), with
+// the hits of its own BLAS; one placed as it is keeps its BLAS (merging
+// would only copy it).
+TEST(Instancing, LoneTransformedInstanceIsMerged) {
+  const TriangleSoup bunny = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
+  const mat4 m = placement(5, 2, 0.3f);
+  Scene lone, own, identity;
+  lone.meshes.push_back(build_mesh(input_of(bunny)));
+  lone.add_instance(0, m, {});
+  own.meshes.push_back(build_mesh(input_of(bunny)));
+  own.add_instance(0, m, {});
+  own.add_instance(0, glm::translate(mat4(1.0f), vec3(1e4f)), {});  // placed twice: its own BLAS, as before
+  identity.meshes.push_back(build_mesh(input_of(bunny)));
+  identity.add_instance(0, mat4(1.0f), {});
+  lone.commit();
+  own.commit();
+  identity.commit();
+  EXPECT_EQ(lone.num_merged_instances(), 1u);
+  EXPECT_EQ(own.num_merged_instances(), 0u);
+  EXPECT_EQ(identity.num_merged_instances(), 0u);
+
+  const AABB b = lone.bounds();
+  const vec3 eye = b.center() + vec3(0.45f, 0.35f, 0.8f) * glm::length(b.extent());
+  const int res = 128;
+  Image a = render_depth(lone, res, eye, b.center()), c = render_depth(own, res, eye, b.center());
+  size_t hits = 0, differ = 0;
+  for (size_t i = 0; i < a.t.size(); ++i) {
+    const bool ha = a.t[i] != kInf, hc = c.t[i] != kInf;
+    hits += ha;
+    if (ha != hc || (ha && (a.inst[i] != c.inst[i] || std::abs(a.t[i] - c.t[i]) > 1e-4f * c.t[i]))) ++differ;
+  }
+  EXPECT_GT(hits, a.t.size() / 10);
+  EXPECT_LE(differ, a.t.size() / 2000) << differ << " of " << a.t.size() << " pixels differ";
+}
+
 TEST(Instancing, ThousandInstancesStoreOneMesh) {
   const TriangleSoup bunny = load_mesh_file(shared_dir() + "/meshes/stanford-bunny.obj");
   Scene one, many;

@@ -338,7 +338,13 @@ TEST(LightSampling, MirroredEmitterEmitsFromTheSideItIsShadedWith) {
     // Local winding (0, 0, -1): the front faces down; mirrored in x.
     const mat4 mirror = glm::scale(mat4(1.0f), vec3(-1.0f, 1.0f, 1.0f));
     fixtures::add_quad(s, {-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, 1, mirror);
-    if (merged) fixtures::add_quad(s, {-0.5f, -0.5f, -5}, {0.5f, -0.5f, -5}, {0.5f, 0.5f, -5}, {-0.5f, 0.5f, -5}, 0);
+    if (merged) {
+      fixtures::add_quad(s, {-0.5f, -0.5f, -5}, {0.5f, -0.5f, -5}, {0.5f, 0.5f, -5}, {-0.5f, 0.5f, -5}, 0);
+    } else {
+      // The light's mesh placed twice keeps its own BLAS; the second copy,
+      // far below and facing down, sends no light up.
+      s.add_instance(0, glm::translate(mat4(1.0f), vec3(0.0f, 0.0f, -100.0f)) * mirror, {1});
+    }
     s.commit();
     ASSERT_EQ(s.num_merged_instances(), merged ? 2u : 0u);
     // What shading sees: a ray from below hits the front.
