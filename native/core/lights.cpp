@@ -536,9 +536,16 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     // triangle as the BVH tests it (in its instance's space), and the shading
     // point's offset origin (pbrt-v4 SpawnRayTo offsets both ends). Without it,
     // far from the origin (1e3 and beyond) every shadow ray hit its own light.
-    ls.dist = std::max(0.0f, ls.dist - shadow_end_error(p, q) - t.local_error);
+    // The bound is on where the emitter's plane lies, across it; along a ray
+    // that meets the plane at cosine cos_l it is 1 / |cos_l| as long. Taken
+    // along the ray as it is, a grazing ray met its own light first: the
+    // ceiling beside and above a light panel just below it (McGuire's box,
+    // 1 cm under its ceiling) lost a quarter of its direct light there.
     float cos_l = -glm::dot(ls.wi, t.n);  // > 0: we see the front face
     if (cos_l == 0.0f) return false;
+    const float stop_short = (shadow_end_error(p, q) + t.local_error) / std::abs(cos_l);
+    if (!(stop_short < ls.dist)) return false;  // too grazing to tell the light from its plane
+    ls.dist -= stop_short;
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
     ls.pdf = omega > 0.0f ? pmf / omega : pmf * dist2 / (std::abs(cos_l) * t.area);
     ls.is_delta = false;

@@ -362,6 +362,60 @@ TEST(LightSampling, MirroredEmitterEmitsFromTheSideItIsShadedWith) {
   }
 }
 
+// A light panel 1 cm under a ceiling, as in McGuire's box: the ceiling above
+// and beside it sees the panel's top at grazing angles. Its direct light by
+// light sampling, with the shadow rays traced as the integrator traces them
+// (from the offset origin, stopping short of the sampled point), is the exact
+// irradiance: the shadow rays do not hit the panel they go to. They did at
+// cosines to the panel below ~0.2, stopping short of it by a rounding bound
+// taken along the ray instead of across the panel's plane: the ceiling beside
+// the panel lost up to a quarter of its light.
+TEST(LightSampling, ShadowRaysToAPanelUnderACeilingDoNotHitThePanel) {
+  Scene s;  // material 0: the default grey, for the ceiling
+  Material light;
+  light.emission_front = vec3(1.0f);  // one-sided: the front, +z, faces the ceiling
+  s.materials.push_back(light);
+  // Tilted and moved off the origin, as a room's ceiling light is: the
+  // rounding then has a component across the planes.
+  const mat4 xf = glm::rotate(glm::translate(mat4(1.0f), vec3(0.3f, -0.7f, 1.98f)), 0.6f, glm::normalize(vec3(1.0f, 0.4f, 0.2f)));
+  auto at = [&](vec3 v) { return vec3(xf * vec4(v, 1.0f)); };
+  const std::vector<vec3> local = {{-0.5f, -0.5f, 0.0f}, {0.5f, -0.5f, 0.0f}, {0.5f, 0.5f, 0.0f}, {-0.5f, 0.5f, 0.0f}};
+  std::vector<vec3> panel;
+  for (const vec3& v : local) panel.push_back(at(v));
+  fixtures::add_quad(s, local[0], local[1], local[2], local[3], 1, xf);
+  fixtures::add_quad(s, {-2, -2, 0.01f}, {-2, 2, 0.01f}, {2, 2, 0.01f}, {2, -2, 0.01f}, 0, xf);  // facing down
+  s.commit();
+  ASSERT_EQ(s.num_merged_instances(), 2u);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  for (float x : {0.3f, 0.55f, 0.7f, 1.0f}) {  // above the panel by its edge, and beside it
+    // The ceiling point as a ray from the gap finds it.
+    const Ray up{at(vec3(x, 0.1f, 0.005f)), glm::normalize(glm::mat3(xf) * vec3(0.0f, 0.0f, 1.0f))};
+    Hit hit;
+    ASSERT_TRUE(s.intersect(up, hit));
+    const SurfaceInteraction si = s.interaction(up, hit);
+    const vec3 ng = si.back_face ? -si.ng : si.ng;
+    const int N = 1 << 15;
+    double sum = 0.0, sum2 = 0.0;
+    for (int i = 0; i < N; ++i) {
+      LightSample ls;
+      double w = 0.0;
+      if (s.light_sampler().sample(si.p, ng, vec2(U(rng), U(rng)), ls)) {
+        const vec3 origin = offset_ray_origin(si.p, si.p_error, ng, ls.wi);
+        const float tmax = (ls.dist - glm::dot(origin - si.p, ls.wi)) * (1.0f - 1e-4f);
+        if (!s.occluded(origin, ls.wi, tmax)) w = ls.li.x * std::max(0.0f, glm::dot(ls.wi, ng)) / ls.pdf;
+      }
+      sum += w;
+      sum2 += w * w;
+    }
+    const double mean = sum / N, stderr_ = std::sqrt(std::max(0.0, sum2 / N - mean * mean) / N);
+    const double exact = polygon_irradiance(panel, si.p, ng);
+    std::printf("x %.2f: %.4f of the exact irradiance %.3g\n", x, mean / exact, exact);
+    EXPECT_GT(exact, 1e-4) << x;
+    EXPECT_NEAR(mean, exact, 4.0 * stderr_ + 2e-3 * exact) << "x " << x;
+  }
+}
+
 namespace {
 
 // A grid of k x k small one-sided quad lights (0.1 wide, emitting down) in
