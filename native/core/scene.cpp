@@ -175,8 +175,9 @@ void Scene::rebase_on_camera() {
 // there are at least two or the one has a transform (a lone instance
 // placed as its mesh is would only be copied; a transformed one, merged,
 // takes no ray into object space and no hit back to world space: McGuire's
-// Cornell box, one object); tlas_items receives the others. Instances whose transform has no finite
-// inverse stay: the TLAS skips them, as it always did.
+// Cornell box, one object); tlas_items receives the others. Instances
+// whose transform has no finite inverse stay: the TLAS skips them, as it
+// always did.
 void Scene::merge_single_use_instances(std::vector<uint32_t>& tlas_items) {
   merged_ = Mesh{};
   merged_owner_.clear();
