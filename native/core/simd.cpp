@@ -39,6 +39,19 @@ bool cpu_has_avx512() {
   return has;
 }
 
+static bool detect_gfni() {
+  const char* env = std::getenv("TESSERA_SIMD");
+  if (env && (std::strcmp(env, "sse2") == 0 || std::strcmp(env, "SSE2") == 0)) return false;
+#if defined(__x86_64__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("gfni");
+#else
+  return false;
+#endif
+}
+
+const bool g_cpu_has_gfni = detect_gfni();
+
 const char* simd_level_name(SimdLevel level) { return level == SimdLevel::AVX2 ? "avx2" : "sse2"; }
 
 }  // namespace tessera

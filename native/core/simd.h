@@ -19,4 +19,9 @@ const char* simd_level_name(SimdLevel level);
 // same BVH8, the AVX-512 traversal replaces the AVX2 one; see bvh8.h).
 bool cpu_has_avx512();
 
+// GFNI (the sampler's bit reversals, sampler.h), set once when the module
+// loads; false with TESSERA_SIMD=sse2. A variable rather than a function:
+// the sampler reads it at every draw.
+extern const bool g_cpu_has_gfni;
+
 }  // namespace tessera

@@ -23,6 +23,30 @@ TEST(Sampler, SobolDim1ReversedTableEqualsTheBitSerialConstruction) {
   EXPECT_EQ(sobol_dim1_reversed(0xffffffffU), reverse_bits(sobol_dim1(0xffffffffU)));
 }
 
+// GFNI's bit reversal and the sampler's draws with it are the portable
+// ones, bit for bit (the sampler takes them wherever the CPU has GFNI).
+TEST(Sampler, GfniDrawsArePortableDraws) {
+  if (!g_cpu_has_gfni) GTEST_SKIP() << "no GFNI on this CPU (or TESSERA_SIMD=sse2)";
+  uint32_t w = 777;
+  for (uint32_t x : {0U, 1U, 0x80000000U, 0xffffffffU, 0x12345678U}) ASSERT_EQ(reverse_bits_gfni(x), reverse_bits(x)) << x;
+  for (int i = 0; i < 200000; ++i) {
+    w = hash_u32(w + uint32_t(i));
+    ASSERT_EQ(reverse_bits_gfni(w), reverse_bits(w)) << w;
+  }
+  for (uint32_t sample : {0U, 1U, 5U, 64U, 1000U, 65537U, 0xfffffffeU}) {
+    Sampler a(3, 4, sample, 9), b(3, 4, sample, 9);
+    for (int d = 0; d < 50; ++d) {
+      if (d % 4 == 3) {
+        ASSERT_EQ(a.get_1d_with<true>(), b.get_1d_with<false>()) << "sample " << sample << " dim " << d;
+      } else {
+        const vec2 u = a.get_2d_with<true>(), v = b.get_2d_with<false>();
+        ASSERT_EQ(u.x, v.x) << "sample " << sample << " dim " << d;
+        ASSERT_EQ(u.y, v.y) << "sample " << sample << " dim " << d;
+      }
+    }
+  }
+}
+
 // The stream as the definition spells it (Burley 2020): index =
 // nested_uniform_scramble(sample, s), x = nested_uniform_scramble(
 // sobol_dim0(index), s1), y = nested_uniform_scramble(sobol_dim1(index), s2);
