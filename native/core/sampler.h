@@ -3,7 +3,9 @@
 // Owen Scrambling", JCGT 9(4)). Every value depends only on the pixel, the
 // sample index, the seed and the dimension, never on threads or tile order.
 #pragma once
+#if defined(__x86_64__)
 #include <emmintrin.h>
+#endif
 
 #include "math.h"
 #include "simd.h"
@@ -31,8 +33,8 @@ inline uint32_t reverse_bits(uint32_t x) {  // bytes swapped, then nibbles, pair
 // AMD from Zen 4): gf2p8affineqb with the anti-diagonal bit matrix reverses
 // the bits of each byte, then the bytes are swapped. In inline assembly, so
 // that the module built for the x86-64 baseline carries it; the sampler runs
-// it only where cpu_has_gfni() (its reversals are a third of its work, and
-// the sampler 6-10% of a render).
+// it only where g_cpu_has_gfni (simd.h; its reversals were a third of its
+// work, and the sampler 6-10% of a render).
 inline uint32_t reverse_bits_gfni(uint32_t x) {
 #if defined(__x86_64__)
   __m128i v = _mm_cvtsi32_si128(int(x));

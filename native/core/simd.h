@@ -20,8 +20,8 @@ const char* simd_level_name(SimdLevel level);
 bool cpu_has_avx512();
 
 // GFNI (the sampler's bit reversals, sampler.h), set once when the module
-// loads; false with TESSERA_SIMD=sse2. A variable rather than a function:
-// the sampler reads it at every draw.
+// loads (false before: the portable path); false with TESSERA_SIMD=sse2. A
+// variable rather than a function: the sampler reads it at every draw.
 extern const bool g_cpu_has_gfni;
 
 }  // namespace tessera
