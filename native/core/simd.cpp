@@ -5,9 +5,14 @@
 
 namespace tessera {
 
-static SimdLevel detect() {
+// TESSERA_SIMD is `level`, in lower or upper case (simd.h).
+static bool simd_env_is(const char* level, const char* upper) {
   const char* env = std::getenv("TESSERA_SIMD");
-  if (env && (std::strcmp(env, "sse2") == 0 || std::strcmp(env, "SSE2") == 0)) return SimdLevel::SSE2;
+  return env && (std::strcmp(env, level) == 0 || std::strcmp(env, upper) == 0);
+}
+
+static SimdLevel detect() {
+  if (simd_env_is("sse2", "SSE2")) return SimdLevel::SSE2;
 #if defined(__x86_64__) || defined(__i386__)
   __builtin_cpu_init();
   // The BVH8 kernels use FMA next to AVX2 (every CPU with AVX2 has had it).
@@ -23,8 +28,7 @@ SimdLevel cpu_simd_level() {
 
 static bool detect_avx512() {
   if (cpu_simd_level() != SimdLevel::AVX2) return false;
-  const char* env = std::getenv("TESSERA_SIMD");
-  if (env && (std::strcmp(env, "avx2") == 0 || std::strcmp(env, "AVX2") == 0)) return false;
+  if (simd_env_is("avx2", "AVX2")) return false;
 #if defined(__x86_64__) || defined(__i386__)
   // FMA comes with the AVX2 level already.
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
@@ -39,9 +43,9 @@ bool cpu_has_avx512() {
   return has;
 }
 
+// Not cpu_simd_level(): GFNI comes without AVX2 too (Intel's Tremont cores).
 static bool detect_gfni() {
-  const char* env = std::getenv("TESSERA_SIMD");
-  if (env && (std::strcmp(env, "sse2") == 0 || std::strcmp(env, "SSE2") == 0)) return false;
+  if (simd_env_is("sse2", "SSE2")) return false;
 #if defined(__x86_64__)
   __builtin_cpu_init();
   return __builtin_cpu_supports("gfni");
