@@ -508,6 +508,25 @@ BSDF::BSDF(const vec3& ns, const vec3& ng, const Material& m, bool back_face, co
       ng_(ng),
       wo_world_(wo_world) {
   wo_ = frame_.to_local(wo_world);
+  if (m.model == ShadingModel::Cycles3 && m.kind == ClosureKind::Principled && m.num_more == 0 && m.alpha >= 1.0f &&
+      m.weight > 0.0f && !(m.metallic > 0.0f) && !(m.specular > 0.0f) && !(m.transmission > 0.0f)) {
+    // A Cycles 3.x Principled BSDF with no metallic, specular or
+    // transmission, alone: its diffuse lobe (add_principled's first) is the
+    // whole BSDF, whatever wo is. Built directly, without the closure list:
+    // the same lobe, a fifth of the constructor's work.
+    const vec3 tint = glm::clamp(m.base_color, vec3(0.0f), vec3(1.0f)) * m.weight;
+    if (!(luminance(tint) > 0.0f)) return;  // black: nothing scatters
+    Lobe& l = add_lobe(Lobe::kBurley, 1.0f);
+    l.tint = tint;
+    l.a = std::clamp(m.roughness, 0.0f, 1.0f);
+    l.prob = 1.0f;
+    l.is_delta = false;
+    l.is_reflect = true;
+    l.is_transmit = false;
+    l.kinds = kRayDiffuse;
+    has_smooth_ = true;
+    return;
+  }
   Closure c0 = m.closure(0);
   // Principled Alpha (Cycles: mix of a white Transparent BSDF by 1 - alpha).
   if (m.alpha < 1.0f && c0.weight > 0.0f) {

@@ -455,6 +455,56 @@ TEST(Materials, ClosureWeightsAreLinear) {
   }
 }
 
+// A Cycles 3.x Principled BSDF with no metallic, specular or transmission is
+// built without its closure list (bsdf.cpp): the BSDF must be the one the
+// closure list gives. A second closure of weight 0 (dropped, as Cycles drops
+// it) sends the same material down the closure list; f, pdf and samples must
+// match bit for bit, with bent shading normals and on back faces, for black
+// and out-of-range inputs too.
+TEST(Materials, DiffusePrincipledShortcutIsTheClosureListsBSDF) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const Closure dropped = closure(ClosureKind::Glossy, 0.0f, vec3(0.9f), 0.2f);
+  for (int i = 0; i < 400; ++i) {
+    Closure p = closure(ClosureKind::Principled, i % 7 == 0 ? 1.0f : 0.2f + u(rng), vec3(u(rng), u(rng), u(rng)),
+                        1.2f * u(rng) - 0.1f);
+    p.specular = i % 5 == 0 ? -0.1f : 0.0f;
+    p.metallic = i % 3 == 0 ? -0.2f : 0.0f;
+    p.transmission = i % 4 == 0 ? -0.5f : 0.0f;
+    if (i % 11 == 0) p.color = vec3(0.0f);
+    if (i % 13 == 0) p.color = vec3(1.5f, -0.2f, 0.4f);
+    const Material shortcut = with_closures({p}), list = with_closures({p, dropped});
+    const vec3 ng(0, 0, 1);
+    const vec3 ns = glm::normalize(vec3(0.4f * u(rng) - 0.2f, 0.4f * u(rng) - 0.2f, 1.0f));
+    vec3 wo = random_dir(rng);
+    wo.z = std::abs(wo.z) + 0.02f;
+    wo = glm::normalize(wo);
+    const bool back_face = i % 2 == 1;
+    const BSDF a(ns, ng, shortcut, back_face, wo), b(ns, ng, list, back_face, wo);
+    ASSERT_EQ(a.num_lobes(), b.num_lobes()) << i;
+    ASSERT_EQ(a.has_smooth_lobes(), b.has_smooth_lobes()) << i;
+    for (int j = 0; j < 8; ++j) {
+      const vec3 wi = random_dir(rng);
+      float pa, pb;
+      ASSERT_EQ(a.eval(wi, &pa), b.eval(wi, &pb)) << i;
+      ASSERT_EQ(pa, pb) << i;
+      ASSERT_EQ(a.eval(wi, &pa, kRayGlossy), b.eval(wi, &pb, kRayGlossy)) << i;
+      ASSERT_EQ(pa, pb) << i;
+      const float u_lobe = u(rng);
+      const vec2 u2(u(rng), u(rng));
+      BSDFSample sa, sb;
+      const bool ok = a.sample_f(u_lobe, u2, sa);
+      ASSERT_EQ(ok, b.sample_f(u_lobe, u2, sb)) << i;
+      if (!ok) continue;
+      ASSERT_EQ(sa.wi, sb.wi) << i;
+      ASSERT_EQ(sa.f, sb.f) << i;
+      ASSERT_EQ(sa.pdf, sb.pdf) << i;
+      ASSERT_EQ(sa.delta, sb.delta) << i;
+      ASSERT_EQ(sa.kind, sb.kind) << i;
+    }
+  }
+}
+
 // Principled Alpha a: a white transparent closure of weight 1 - a, the rest
 // scaled by a (Cycles). Transparent samples continue exactly along -wo.
 TEST(Materials, AlphaIsATransparentClosure) {
