@@ -140,6 +140,7 @@ class BSDF {
   };
 
   Lobe& add_lobe(Lobe::Type type, float sample_weight);
+  void finish_lobe(Lobe& l, float prob);
   void add_principled(const Closure& c, bool back_face);
   void add_principled_v2(const Closure& c, bool back_face);
   void add_closure(const Closure& c, bool back_face);
