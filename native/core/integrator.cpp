@@ -283,9 +283,9 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
 
     // Continue the path by sampling the BSDF.
     BSDFSample bs;
-    // The camera ray's first hit scatters with the pixel position's Sobol
-    // point (Sampler::get_2d_joint): the two are stratified together.
-    if (!bsdf.sample_f(u_lobe_threshold.x, vertex == 0 ? sampler.get_2d_joint() : sampler.get_2d(), bs)) break;
+    // The first bounces' directions continue the pixel position's Sobol
+    // point (Sampler::get_2d_joint): stratified together with it.
+    if (!bsdf.sample_f(u_lobe_threshold.x, sampler.get_2d_joint(), bs)) break;
     if (bs.kind == BSDFSample::kTransparent) {
       // Straight on through the surface: not a bounce, and the MIS state of
       // the last scattering vertex is kept (Cycles' path_state_next for

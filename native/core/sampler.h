@@ -69,22 +69,25 @@ constexpr uint32_t sobol_dim1(uint32_t index) {
     if (index & 1U) x ^= v;
   return x;
 }
-// Sobol dimensions 2 and 3 (Joe and Kuo's direction numbers,
-// new-joe-kuo-6.21201: primitive polynomials x^2 + x + 1 and x^3 + x + 1,
-// m = 1 3 and 1 3 1), by definition: v_k = m_k 2^(32-k) for k <= s, then
-// v_k = v_{k-s} ^ (v_{k-s} >> s) ^ the v_{k-j} of a's bits (Bratley and Fox).
-constexpr uint32_t sobol_dim23(int dim, uint32_t index) {
-  const int s = dim == 2 ? 2 : 3;
-  const uint32_t m[3] = {1, 3, 1};
+// Sobol dimensions 2 to 5 (Joe and Kuo's direction numbers,
+// new-joe-kuo-6.21201, their dimensions 3 to 6: degree s, coefficients a,
+// initial m), by definition: v_k = m_k 2^(32-k) for k <= s, then v_k =
+// v_{k-s} ^ (v_{k-s} >> s) ^ the v_{k-j} whose bit of a is set (Bratley and
+// Fox 1988); a point is the XOR of the v_k of its index's bits.
+constexpr int kSobolJointDims = 4;  // dimensions 2 .. 5
+constexpr uint32_t sobol_dim(int dim, uint32_t index) {
+  constexpr int kS[kSobolJointDims] = {2, 3, 3, 4}, kA[kSobolJointDims] = {1, 1, 2, 1};
+  constexpr uint32_t kM[kSobolJointDims][4] = {{1, 3}, {1, 3, 1}, {1, 1, 1}, {1, 1, 3, 3}};
+  const int d = dim - 2, s = kS[d], a = kA[d];
   uint32_t v[33] = {};
   for (int k = 1; k <= 32; ++k) {
     if (k <= s) {
-      v[k] = m[k - 1] << (32 - k);
-    } else {
-      v[k] = v[k - s] ^ (v[k - s] >> s);
-      // a = 1: only the last of the s - 1 coefficients, that of v_{k-s+1}.
-      if (s > 1) v[k] ^= v[k - s + 1];
+      v[k] = kM[d][k - 1] << (32 - k);
+      continue;
     }
+    v[k] = v[k - s] ^ (v[k - s] >> s);
+    for (int j = 1; j < s; ++j)
+      if ((a >> (s - 1 - j)) & 1) v[k] ^= v[k - j];
   }
   uint32_t x = 0;
   for (int k = 1; index; ++k, index >>= 1)
@@ -117,20 +120,25 @@ inline uint32_t sobol_dim1_reversed(uint32_t w) {
          kSobolDim1Reversed.byte[2][(w >> 16) & 255U] ^ kSobolDim1Reversed.byte[3][w >> 24];
 }
 
-// The same for Sobol dimensions 2 and 3 (Sampler::get_2d_joint).
-struct SobolDim23ReversedTable {
-  uint32_t byte[2][4][256];
-  constexpr SobolDim23ReversedTable() : byte{} {
-    for (int d = 0; d < 2; ++d)
-      for (int k = 0; k < 4; ++k)
-        for (uint32_t b = 0; b < 256; ++b)
-          byte[d][k][b] = reverse_bits_serial(sobol_dim23(d + 2, reverse_bits_serial(b) >> (8 * k)));
+// The same for Sobol dimensions 2 to 5 (Sampler::get_2d_joint), by
+// nibbles: eight lookups in 512 bytes a dimension, where byte tables would
+// take 16 KiB of the L1 cache beside the 4 KiB of dimension 1's.
+struct SobolJointReversedTable {
+  uint32_t nibble[kSobolJointDims][8][16];
+  constexpr SobolJointReversedTable() : nibble{} {
+    for (int d = 0; d < kSobolJointDims; ++d)
+      for (int k = 0; k < 8; ++k)
+        for (uint32_t b = 0; b < 16; ++b)
+          nibble[d][k][b] = reverse_bits_serial(sobol_dim(d + 2, reverse_bits_serial(b << (4 * k))));
   }
 };
-inline constexpr SobolDim23ReversedTable kSobolDim23Reversed{};
-inline uint32_t sobol_dim23_reversed(int dim, uint32_t w) {
-  const auto& t = kSobolDim23Reversed.byte[dim - 2];
-  return t[0][w & 255U] ^ t[1][(w >> 8) & 255U] ^ t[2][(w >> 16) & 255U] ^ t[3][w >> 24];
+inline constexpr SobolJointReversedTable kSobolJointReversed{};
+// reverse_bits(sobol_dim(dim, reverse_bits(w))), dim in 2 .. 5.
+inline uint32_t sobol_dim_reversed(int dim, uint32_t w) {
+  const auto& t = kSobolJointReversed.nibble[dim - 2];
+  uint32_t x = 0;
+  for (int k = 0; k < 8; ++k) x ^= t[k][(w >> (4 * k)) & 15U];
+  return x;
 }
 
 // The top 24 bits, exactly: rounding all 32 to a float could carry a value
@@ -186,6 +194,7 @@ struct Sampler {
   StreamSeeds* seeds = nullptr;
   uint32_t first_w = 0;  // the first pair's shuffled index, bit-reversed (get_2d_joint)
   bool has_first = false;
+  int joint_dim = 2;  // the next Sobol dimension get_2d_joint draws
 
   Sampler(uint32_t px, uint32_t py, uint32_t sample_index, uint32_t seed)
       : pixel_seed(hash_combine(hash_combine(hash_u32(seed), px), py)), sample_reversed(reverse_bits(sample_index)) {}
@@ -197,18 +206,21 @@ struct Sampler {
   // Sampler.GfniDrawsArePortableDraws), one branch a draw.
   vec2 get_2d() { return g_cpu_has_gfni ? get_2d_with<true>() : get_2d_with<false>(); }
   float get_1d() { return g_cpu_has_gfni ? get_1d_with<true>() : get_1d_with<false>(); }
-  // The next pair, not from a shuffle of its own but as Sobol dimensions 2
-  // and 3 of the first pair's shuffled index (each coordinate scrambled by
-  // its own seed): the first pair (the pixel position) and this one are the
-  // first four dimensions of one scrambled Sobol sequence, stratified
-  // together. The integrator draws the first bounce's direction so: with
-  // independent shuffles, which part of the pixel a sample lands in said
-  // nothing about where its path went next. Per-pixel variance at 64
-  // samples: McGuire's Cornell box -5 to -10%, veach_mis -9%, cbox_mitsuba
-  // -2% (docs/convergence/NOTES.md). Only after get_2d drew the first pair,
-  // and once per sample: a second joint pair would repeat this one's points.
+  // The next pair, not from a shuffle of its own but as the next two Sobol
+  // dimensions of the first pair's shuffled index (2 and 3 at the first
+  // call, 4 and 5 at the second; each coordinate scrambled by its own
+  // seed), while there are any, else get_2d(): the first pair (the pixel
+  // position) and these are the first dimensions of one scrambled Sobol
+  // sequence, stratified together. The integrator draws the first two
+  // bounces' directions so: with independent shuffles, which part of the
+  // pixel a sample lands in said nothing about where its path went next.
+  // Per-pixel variance at 64 samples over 8 seeds, two seed sets: McGuire's
+  // Cornell box -5 to -7%, cbox_mitsuba -7%, veach_mis -10%, modern_hall
+  // -0.5% (docs/convergence/NOTES.md; a third bounce's direction from
+  // dimensions 6 and 7 did worse on the Cornell box). Only after get_2d drew
+  // the first pair.
   vec2 get_2d_joint() {
-    if (!has_first) return get_2d();
+    if (!has_first || joint_dim + 1 >= 2 + kSobolJointDims) return get_2d();
     return g_cpu_has_gfni ? get_2d_joint_with<true>() : get_2d_joint_with<false>();
   }
 
@@ -216,8 +228,9 @@ struct Sampler {
   vec2 get_2d_joint_with() {
     uint32_t scratch[3];
     const uint32_t* s = dimension_seeds(scratch);
-    const uint32_t x = reverse<kGfni>(laine_karras_permutation(sobol_dim23_reversed(2, first_w), s[1]));
-    const uint32_t y = reverse<kGfni>(laine_karras_permutation(sobol_dim23_reversed(3, first_w), s[2]));
+    const uint32_t x = reverse<kGfni>(laine_karras_permutation(sobol_dim_reversed(joint_dim, first_w), s[1]));
+    const uint32_t y = reverse<kGfni>(laine_karras_permutation(sobol_dim_reversed(joint_dim + 1, first_w), s[2]));
+    joint_dim += 2;
     return vec2(u32_to_unit_float(x), u32_to_unit_float(y));
   }
 

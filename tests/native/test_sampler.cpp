@@ -23,74 +23,81 @@ TEST(Sampler, SobolDim1ReversedTableEqualsTheBitSerialConstruction) {
   EXPECT_EQ(sobol_dim1_reversed(0xffffffffU), reverse_bits(sobol_dim1(0xffffffffU)));
 }
 
-// Sobol dimensions 2 and 3 are those of Joe and Kuo's table (their first
-// points, in the usual 1-based numbering dimensions 3 and 4), and their
-// reversed tables the definition's.
-TEST(Sampler, SobolDims23AreJoeKuosAndTheirTablesTheDefinition) {
-  // Points 0..7 of Joe-Kuo dimensions 3 and 4, times 8, worked by hand from
-  // v = 1/2, 3/4, 3/8 (m = 1, 3, then m_3 = 2 m_2 ^ 4 m_1 ^ m_1 = 3) and
-  // v = 1/2, 3/4, 1/8 (m = 1, 3, 1), each point the XOR of the v of its
-  // index's bits.
-  const uint32_t d2[8] = {0, 4, 6, 2, 3, 7, 5, 1}, d3[8] = {0, 4, 6, 2, 1, 5, 7, 3};
-  for (uint32_t i = 0; i < 8; ++i) {
-    EXPECT_EQ(sobol_dim23(2, i) >> 29, d2[i]) << "index " << i;
-    EXPECT_EQ(sobol_dim23(3, i) >> 29, d3[i]) << "index " << i;
-  }
+// Sobol dimensions 2 to 5 are those of Joe and Kuo's table (their first
+// points; in their 1-based numbering dimensions 3 to 6), and their reversed
+// tables the definition's.
+TEST(Sampler, SobolDims2To5AreJoeKuosAndTheirTablesTheDefinition) {
+  // Points 0..7 times 8, worked by hand: v = 1/2, 3/4, 3/8 (m = 1 3, then
+  // m_3 = 2 m_2 ^ 4 m_1 ^ m_1 = 3); 1/2, 3/4, 1/8 (m = 1 3 1); 1/2, 1/4, 1/8
+  // (m = 1 1 1); 1/2, 1/4, 3/8 (m = 1 1 3): each point the XOR of the v of
+  // its index's bits.
+  const uint32_t points[4][8] = {
+      {0, 4, 6, 2, 3, 7, 5, 1}, {0, 4, 6, 2, 1, 5, 7, 3}, {0, 4, 2, 6, 1, 5, 3, 7}, {0, 4, 2, 6, 3, 7, 1, 5}};
+  for (int d = 2; d < 6; ++d)
+    for (uint32_t i = 0; i < 8; ++i) EXPECT_EQ(sobol_dim(d, i) >> 29, points[d - 2][i]) << "dim " << d << " index " << i;
   uint32_t w = 999;
   for (int i = 0; i < 100000; ++i) {
     w = hash_u32(w + uint32_t(i));
-    ASSERT_EQ(sobol_dim23_reversed(2, w), reverse_bits(sobol_dim23(2, reverse_bits(w)))) << w;
-    ASSERT_EQ(sobol_dim23_reversed(3, w), reverse_bits(sobol_dim23(3, reverse_bits(w)))) << w;
+    for (int d = 2; d < 6; ++d) ASSERT_EQ(sobol_dim_reversed(d, w), reverse_bits(sobol_dim(d, reverse_bits(w)))) << w;
   }
 }
 
-// The joint pair is the definition: Sobol dimensions 2 and 3 of the first
-// pair's shuffled index, each scrambled with its own pair's seeds, the
-// pairs around it untouched; without a first pair drawn, an ordinary pair.
-TEST(Sampler, JointPairIsTheFirstPairsNextSobolDimensions) {
+// The joint pairs are the definition: Sobol dimensions 2 and 3, then 4 and
+// 5, of the first pair's shuffled index, each coordinate scrambled with its
+// own pair's seeds, the pairs around them untouched; then, or without a
+// first pair drawn, ordinary pairs.
+TEST(Sampler, JointPairsAreTheFirstPairsNextSobolDimensions) {
   for (uint32_t sample : {0U, 1U, 5U, 63U, 1000U, 65537U}) {
     const uint32_t pixel_seed = hash_combine(hash_combine(hash_u32(42), 2), 3);
-    const uint32_t s0 = hash_combine(pixel_seed, 0), s2 = hash_combine(pixel_seed, 2);
-    const uint32_t index = nested_uniform_scramble(sample, s0);
+    const uint32_t index = nested_uniform_scramble(sample, hash_combine(pixel_seed, 0));
     Sampler joint(2, 3, sample, 42), plain(2, 3, sample, 42);
-    const vec2 a = joint.get_2d(), b = plain.get_2d();
-    ASSERT_EQ(a, b);
     ASSERT_EQ(joint.get_2d(), plain.get_2d());
-    const vec2 j = joint.get_2d_joint();
-    plain.get_2d();
-    EXPECT_EQ(j.x, u32_to_unit_float(nested_uniform_scramble(sobol_dim23(2, index), hash_combine(s2, 1))));
-    EXPECT_EQ(j.y, u32_to_unit_float(nested_uniform_scramble(sobol_dim23(3, index), hash_combine(s2, 2))));
-    for (int d = 0; d < 5; ++d) ASSERT_EQ(joint.get_2d(), plain.get_2d()) << "pair " << 3 + d;
+    ASSERT_EQ(joint.get_2d(), plain.get_2d());
+    for (uint32_t pair : {2U, 5U}) {
+      const uint32_t s = hash_combine(pixel_seed, pair);
+      const int dim = pair == 2 ? 2 : 4;
+      const vec2 j = joint.get_2d_joint();
+      plain.get_2d();
+      EXPECT_EQ(j.x, u32_to_unit_float(nested_uniform_scramble(sobol_dim(dim, index), hash_combine(s, 1))));
+      EXPECT_EQ(j.y, u32_to_unit_float(nested_uniform_scramble(sobol_dim(dim + 1, index), hash_combine(s, 2))));
+      for (int d = 0; d < 2; ++d) ASSERT_EQ(joint.get_2d(), plain.get_2d()) << "after pair " << pair;
+    }
+    ASSERT_EQ(joint.get_2d_joint(), plain.get_2d()) << "the third joint draw";
     Sampler fresh(2, 3, sample, 42), ordinary(2, 3, sample, 42);
     EXPECT_EQ(fresh.get_2d_joint(), ordinary.get_2d());
   }
 }
 
-// The first pair and the joint pair are one scrambled 4D Sobol sequence: in
-// 2^m samples of a pixel, every cell of a 2 x 2 x 2 x 2 grid over the four
-// coordinates holds 2^m / 16 of them (Sobol's first four dimensions have
-// t = 3: boxes of volume 2^(3 - m) hold 8 points each). With independent
+// The first pair and each joint pair are one scrambled 4D Sobol sequence:
+// in 2^m samples of a pixel, every cell of a 2 x 2 x 2 x 2 grid over the
+// four coordinates holds 2^m / 16 of them once boxes that size are
+// guaranteed their share (Sobol's dimensions 0 1 2 3 have t = 3, 0 1 4 5
+// t = 5: boxes of volume 2^(t - m) hold 2^t points). With independent
 // shuffles, as any two other pairs, the cells' counts scatter.
 TEST(Sampler, FirstAndJointPairsAreStratifiedTogether) {
-  for (int m : {5, 8}) {
+  for (int m : {7, 9}) {
     const uint32_t n = 1U << m;
     for (uint32_t pixel = 0; pixel < 4; ++pixel) {
-      std::vector<int> joint_cells(16, 0), plain_cells(16, 0);
+      std::vector<int> first_cells(16, 0), second_cells(16, 0), plain_cells(16, 0);
+      auto cell = [](vec2 u, vec2 v) { return int(u.x * 2) + 2 * int(u.y * 2) + 4 * int(v.x * 2) + 8 * int(v.y * 2); };
       for (uint32_t s = 0; s < n; ++s) {
         Sampler a(pixel, 9, s, 5), b(pixel, 9, s, 5);
         const vec2 p = a.get_2d(), q = b.get_2d();
         a.get_2d(), b.get_2d();
-        const vec2 j = a.get_2d_joint(), k = b.get_2d();
-        auto cell = [](vec2 u, vec2 v) { return int(u.x * 2) + 2 * int(u.y * 2) + 4 * int(v.x * 2) + 8 * int(v.y * 2); };
-        ++joint_cells[cell(p, j)];
+        const vec2 j1 = a.get_2d_joint(), k = b.get_2d();
+        a.get_2d();
+        const vec2 j2 = a.get_2d_joint();
+        ++first_cells[cell(p, j1)];
+        ++second_cells[cell(p, j2)];
         ++plain_cells[cell(q, k)];
       }
       int spread = 0;
       for (int c = 0; c < 16; ++c) {
-        ASSERT_EQ(joint_cells[c], int(n / 16)) << "m=" << m << " pixel " << pixel << " cell " << c;
+        ASSERT_EQ(first_cells[c], int(n / 16)) << "m=" << m << " pixel " << pixel << " cell " << c;
+        if (m >= 9) ASSERT_EQ(second_cells[c], int(n / 16)) << "m=" << m << " pixel " << pixel << " cell " << c;
         spread += std::abs(plain_cells[c] - int(n / 16));
       }
-      if (m == 8) EXPECT_GT(spread, 0) << "independent pairs came out stratified together: the test sees nothing";
+      EXPECT_GT(spread, 0) << "independent pairs came out stratified together: the test sees nothing";
     }
   }
 }
@@ -110,8 +117,8 @@ TEST(Sampler, GfniDrawsArePortableDraws) {
     for (int d = 0; d < 50; ++d) {
       if (d % 4 == 3) {
         ASSERT_EQ(a.get_1d_with<true>(), b.get_1d_with<false>()) << "sample " << sample << " dim " << d;
-      } else if (d == 2) {
-        ASSERT_EQ(a.get_2d_joint_with<true>(), b.get_2d_joint_with<false>()) << "sample " << sample;
+      } else if (d == 2 || d == 6) {
+        ASSERT_EQ(a.get_2d_joint_with<true>(), b.get_2d_joint_with<false>()) << "sample " << sample << " dim " << d;
       } else {
         const vec2 u = a.get_2d_with<true>(), v = b.get_2d_with<false>();
         ASSERT_EQ(u.x, v.x) << "sample " << sample << " dim " << d;
