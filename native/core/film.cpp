@@ -66,17 +66,24 @@ void Film::resize(int width, int height, bool estimate_error, bool camera_emissi
   const int replicate_columns = (width + stride_ - 1) / stride_;
   slot_of_.assign(estimate_error ? n : 0, -1);
   for (auto* v : {&replicate_pixel_, &replicate_first_, &replicate_streams_, &replicate_samples_}) v->clear();
-  replicate_sum_.clear(), replicate_max_.clear();
+  replicate_kind_.clear(), replicate_sum_.clear(), replicate_max_.clear();
+  followed_streams_ = stratum_drawn_from_ = 0;
   grid_slots_ = estimate_error ? size_t(replicate_columns) * ((height + stride_ - 1) / stride_) : 0;
   if (!estimate_error) return;
   for (int y = 0; y < height; y += stride_)
-    for (int x = 0; x < width; x += stride_) {
-      const size_t i = size_t(y) * size_t(width) + size_t(x);
-      slot_of_[i] = int(replicate_pixel_.size());
-      replicate_pixel_.push_back(int(i)), replicate_first_.push_back(int(replicate_sum_.size()));
-      replicate_streams_.push_back(1), replicate_samples_.push_back(0);
-      replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
-    }
+    for (int x = 0; x < width; x += stride_) add_slot(size_t(y) * size_t(width) + size_t(x), SlotKind::Grid, 1);
+}
+
+// A new slot for the pixel, with its streams at sample 0 (the renderer
+// catches them up); a slot the pixel had before is superseded.
+int Film::add_slot(size_t pixel, SlotKind kind, int streams) {
+  const int slot = int(replicate_pixel_.size());
+  slot_of_[pixel] = slot;
+  replicate_pixel_.push_back(int(pixel)), replicate_first_.push_back(int(replicate_sum_.size()));
+  replicate_streams_.push_back(streams), replicate_samples_.push_back(0), replicate_kind_.push_back(kind);
+  for (int k = 0; k < streams; ++k) replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
+  if (kind == SlotKind::Followed) followed_streams_ += size_t(streams);
+  return slot;
 }
 
 float Film::pixel_error(size_t i) const {
@@ -178,7 +185,8 @@ int Film::wanted_camera_rays_log2(size_t i, int max_log2) const {
 // the ones that carry the most are followed: kFollowStreams streams each,
 // traced from sample 0, whose mean is a reference for this image's pixel
 // (below); the stratum's other pixels count the mean of the grid's pixels
-// in it, the remaining pixels the mean of the grid's other pixels. A grid
+// in it and of a sample of its own (sample_near_stratum), the remaining
+// pixels the mean of the grid's other pixels. A grid
 // pixel's single stream gives the expected error only; 8 streams a followed
 // pixel held veach_mis.blend within 0.68-1.39x at 16-128 spp (4 streams:
 // 0.67-1.55; 16, on half as many pixels: 0.67-1.57).
@@ -241,14 +249,10 @@ double Film::estimated_relative_error(double firefly_threshold) {
   };
   // Followed pixels (a slot past the grid's whose streams have all the
   // pixel's samples) count their own error, fireflies included.
-  auto followed = [&](size_t i) {
-    const int slot = slot_of_[i];
-    return slot >= int(grid_slots_) && replicate_samples_[size_t(slot)] == count_[i];
-  };
+  auto followed = [&](size_t i) { return followed_slot(i) && replicate_samples_[size_t(slot_of_[i])] == count_[i]; };
   // Room for more followed pixels (below), and if there is, the sum over
   // pixels of the sample variance / n, all and near a bright sample.
-  const size_t followed_streams = replicate_sum_.size() - grid_slots_;
-  const size_t room = (grid_slots_ - std::min(grid_slots_, followed_streams)) / size_t(kFollowStreams);
+  const size_t room = (grid_slots_ - std::min(grid_slots_, followed_streams_)) / size_t(kFollowStreams);
   const bool may_follow = room > 0 && threshold < kInf;
   double fireflies = 0.0, near_proxy = 0.0, all_proxy = 0.0;
   size_t near = 0;
@@ -271,18 +275,19 @@ double Film::estimated_relative_error(double firefly_threshold) {
   // estimated by the streams' sample variance / K, so the difference is an
   // unbiased estimate of this image's squared error at the pixel, whatever
   // made the pixel be chosen (the streams are independent of the image).
-  // A grid pixel: its mean against its one stream's, without either side's
-  // firefly: (d^2 / 2) estimates the variance of the pixel's mean (the
-  // expected error), which the grid's pixels stand for over their stratum.
-  double own = 0.0, grid_near = 0.0, grid_far = 0.0;
-  size_t own_near = 0, own_far = 0, n_grid_near = 0, n_grid_far = 0;
+  // A grid or near-stratum pixel: its mean against its one stream's, without
+  // either side's firefly: (d^2 / 2) estimates the variance of the pixel's
+  // mean (the expected error), which these pixels stand for over their
+  // stratum.
+  double own = 0.0, grid_near = 0.0, grid_far = 0.0, stratum_near = 0.0;
+  size_t own_near = 0, own_far = 0, n_grid_near = 0, n_grid_far = 0, n_stratum_near = 0;
   for (size_t slot = 0; slot < replicate_pixel_.size(); ++slot) {
     const size_t i = size_t(replicate_pixel_[slot]);
     const int n = count_[i];
     if (slot_of_[i] != int(slot) || replicate_samples_[slot] != n || n == 0) continue;  // superseded or behind
     const size_t first = size_t(replicate_first_[slot]);
     const bool is_near = near_bright[i] > 0.0f;
-    if (slot >= grid_slots_) {
+    if (replicate_kind_[slot] == SlotKind::Followed) {
       const int k_streams = replicate_streams_[slot];
       vec3 r(0.0f);
       for (int k = 0; k < k_streams; ++k) r += replicate_sum_[first + k];
@@ -305,24 +310,36 @@ double Film::estimated_relative_error(double firefly_threshold) {
     if (m1 == 0 || m2 == 0) continue;
     const vec3 d = x1 / float(m1) - x2 / float(m2);
     const double r = 0.5 * rgb(d * d);
-    if (is_near) grid_near += r, ++n_grid_near;
-    else grid_far += r, ++n_grid_far;
+    if (replicate_kind_[slot] == SlotKind::NearStratum) {
+      if (is_near) stratum_near += r, ++n_stratum_near;  // (no longer near: a sample of nothing)
+    } else if (is_near) {
+      grid_near += r, ++n_grid_near;
+    } else {
+      grid_far += r, ++n_grid_far;
+    }
   }
   if (n_grid_far + n_grid_near == 0) return 0.0;
-  // The pixels not followed, by the grid's of their stratum (near a bright
-  // sample with fewer than kMinNearGridPixels of the grid's there, or none
-  // away from one: the whole grid's). One grid pixel's (d^2 / 2) is a
+  // The pixels not followed, by the replicated pixels of their stratum: near
+  // a bright sample, the grid's there and the near stratum's sample (fewer
+  // than kMinNearGridPixels of them: the whole grid's); away from one, the
+  // grid's (none: the whole grid's). One pixel's (d^2 / 2) is a
   // one-degree-of-freedom figure: standing for the 77 unfollowed pixels near
   // cbox_mitsuba.blend's light once emitter antialiasing had taken their
   // error off, it put the estimate at 1.7-1.8x the true error in 3 of 8
   // seeds (0.91-0.99 with the whole grid's;
   // Controls.ErrorEstimateDoesNotLetOneGridPixelStandForThePixelsNearALight).
+  // The grid alone was too sparse there: at 240 x 135 pixels, 8 of its
+  // pixels near cbox_mitsuba.blend's light, mostly inside it (no error),
+  // stood for the light's edge pixels, which carry two thirds of the
+  // image's error at 4 spp (before emitter antialiasing splits them): the
+  // estimate was 0.53-0.64x the true error.
   // The followed pixels' sum can be under 0 (each is unbiased, not
   // positive): not below 0.
   const double grid_mean = (grid_near + grid_far) / double(n_grid_near + n_grid_far);
   const double rest_near = double(near - own_near), rest_far = double(n_pixels - near - own_far);
+  const size_t n_near = n_grid_near + n_stratum_near;
   double variance = std::max(0.0, own) + fireflies;
-  variance += rest_near * (n_grid_near >= kMinNearGridPixels ? grid_near / double(n_grid_near) : grid_mean);
+  variance += rest_near * (n_near >= kMinNearGridPixels ? (grid_near + stratum_near) / double(n_near) : grid_mean);
   variance += rest_far * (n_grid_far > 0 ? grid_far / double(n_grid_far) : grid_mean);
   variance /= 3.0 * double(n_pixels);
   // Follow the error: kFollowStreams streams each for the unfollowed pixels
@@ -350,7 +367,7 @@ double Film::estimated_relative_error(double firefly_threshold) {
     };
     std::vector<Wanted> wanted;
     for (size_t i = 0; i < n_pixels; ++i)
-      if (near_bright[i] > 0.0f && slot_of_[i] < int(grid_slots_) && active_[i] && count_[i] > 1) {
+      if (near_bright[i] > 0.0f && !followed_slot(i) && active_[i] && count_[i] > 1) {
         const double n = double(count_[i]), one = std::max(rgb(max_[i]), 0.5 * double(near_bright[i])) / n;
         wanted.push_back({std::max(sample_variance(i) / n, one * one), rgb(max_[i]), int(i)});
       }
@@ -362,15 +379,51 @@ double Film::estimated_relative_error(double firefly_threshold) {
       wanted.resize(now);
     }
     std::sort(wanted.begin(), wanted.end(), [](const Wanted& p, const Wanted& q) { return p.i < q.i; });
-    for (const Wanted& p : wanted) {
-      const int i = p.i;
-      slot_of_[size_t(i)] = int(replicate_pixel_.size());
-      replicate_pixel_.push_back(i), replicate_first_.push_back(int(replicate_sum_.size()));
-      replicate_streams_.push_back(kFollowStreams), replicate_samples_.push_back(0);
-      for (int k = 0; k < kFollowStreams; ++k) replicate_sum_.push_back(vec3(0.0f)), replicate_max_.push_back(vec3(0.0f));
-    }
+    for (const Wanted& p : wanted) add_slot(size_t(p.i), SlotKind::Followed, kFollowStreams);
   }
+  if (threshold < kInf) sample_near_stratum(near_bright);
   return std::sqrt(variance) / (mean / (3.0 * double(n_pixels)));
+}
+
+// The near stratum's sample: while fewer than kNearStratumPixels of the
+// pixels near a bright sample that are not followed have a replicate (the
+// grid's there, and this sample's), a slot of one stream for more of them,
+// every k-th in scan order of those without a slot (a systematic sample, so
+// that the pixels inside a light and on its edge are sampled in the share
+// they have). Chosen from where the bright samples are, not from the
+// pixels' errors: their (d^2 / 2) stands for the stratum's unfollowed
+// pixels. The stratum grows as bright samples turn up (on
+// cornell_mcguire.blend at 64 spp, from the light's pixels to 4,677 of 8,160
+// pixels): a sample drawn from it when it was under half its size stands for
+// the part it was drawn from (there, 7x the error of the stratum's mean
+// pixel; the estimate was 2x the true error), so it is drawn again.
+void Film::sample_near_stratum(const std::vector<float>& near_bright) {
+  const size_t n_pixels = sum_.size();
+  size_t unfollowed = 0;
+  for (size_t i = 0; i < n_pixels; ++i) unfollowed += near_bright[i] > 0.0f && !followed_slot(i);
+  if (unfollowed > 2 * stratum_drawn_from_) {
+    for (size_t slot = grid_slots_; slot < replicate_pixel_.size(); ++slot)
+      if (replicate_kind_[slot] == SlotKind::NearStratum && slot_of_[size_t(replicate_pixel_[slot])] == int(slot))
+        slot_of_[size_t(replicate_pixel_[slot])] = -1;
+    stratum_drawn_from_ = unfollowed;
+  }
+  size_t have = 0, candidates = 0;
+  for (size_t i = 0; i < n_pixels; ++i) {
+    if (!(near_bright[i] > 0.0f)) continue;
+    if (slot_of_[i] >= 0) have += !followed_slot(i);
+    else candidates += active_[i] && count_[i] > 0;
+  }
+  const size_t want = size_t(kNearStratumPixels) - std::min(size_t(kNearStratumPixels), have);
+  if (want == 0 || candidates == 0) return;
+  const size_t take = std::min(want, candidates);
+  // Candidate c (in scan order) is taken where c take / candidates passes a
+  // whole number: take of them, evenly spread.
+  size_t c = 0;
+  for (size_t i = 0; i < n_pixels; ++i) {
+    if (!(near_bright[i] > 0.0f) || slot_of_[i] >= 0 || !active_[i] || count_[i] == 0) continue;
+    if ((c + 1) * take / candidates > c * take / candidates) add_slot(i, SlotKind::NearStratum, 1);
+    ++c;
+  }
 }
 
 }  // namespace tessera

@@ -43,13 +43,19 @@ namespace tessera {
 // replicate streams each (as many streams as the grid has, at most), traced
 // from sample 0 (catching up when the pixel is followed). Their mean is a
 // reference for this image's pixel, not only for its expected error
-// (film.cpp).
+// (film.cpp). The other pixels near a bright sample count a systematic
+// sample of them (kNearStratumPixels, one stream each, the grid's there
+// among them), which a sparse grid alone did not give.
 class Film {
  public:
   static constexpr int kMinReplicatePixels = 256;
   static constexpr int kMaxReplicateStride = 16;
   static constexpr int kFollowStreams = 8;  // replicate streams of a followed pixel
   static constexpr double kFollowShare = 0.25;  // followed while the pixels near bright samples carry this much
+  // The pixels near a bright sample that stand for the ones not followed:
+  // the grid's there, and a systematic sample of the others (one stream
+  // each) until they number this many (film.cpp).
+  static constexpr int kNearStratumPixels = 128;
 
   // n = width * height pixels; replicates only with estimate_error; the
   // camera emission statistics only with camera_emission; the alpha sums only
@@ -138,9 +144,11 @@ class Film {
   int extra_camera_rays_log2(size_t i) const { return split_[i]; }
   void set_extra_camera_rays_log2(size_t i, int log2) { split_[i] = uint8_t(log2); }
   size_t replicate_grid_size() const { return grid_slots_; }
-  // Replicate streams, the grid's and the followed pixels' (what they cost:
-  // each stream traces its pixel's samples once more).
+  // Replicate streams, the grid's, the near stratum's and the followed
+  // pixels' (what they cost: each stream traces its pixel's samples once
+  // more), and of those the followed pixels'.
   size_t replicate_count() const { return replicate_sum_.size(); }
+  size_t followed_replicate_count() const { return followed_streams_; }
 
   // Cycles' adaptive sampling error of one pixel (film_adaptive_sampling_
   // convergence_check, after Dammertz et al. 2010): |full - half| summed over
@@ -167,7 +175,7 @@ class Film {
   // the grid alone, nothing added. 0 without replicates.
   static constexpr double kFireflyThreshold = 16.0;
   static constexpr double kFireflyDominance = 2.0;  // x the sum of the pixel's other samples
-  // Fewer of the grid's pixels than this near a bright sample: the unfollowed
+  // Fewer replicated pixels than this near a bright sample: the unfollowed
   // pixels there count the whole grid's mean (film.cpp).
   static constexpr size_t kMinNearGridPixels = 4;
   double estimated_relative_error(double firefly_threshold = kFireflyThreshold);
@@ -191,6 +199,15 @@ class Film {
   std::vector<uint8_t> split_;                 // per pixel: log2 of its extra camera rays per sample (0: none)
   std::vector<int> slot_of_;    // per pixel: its replicate slot or -1 (empty: no replicates)
   size_t grid_slots_ = 0;       // slots 0 .. grid_slots_ - 1 are the grid's
+  size_t followed_streams_ = 0;  // streams of the followed pixels' slots
+  size_t stratum_drawn_from_ = 0;  // unfollowed pixels near a bright sample when the near stratum's sample was drawn
+  // What a slot past the grid's is: one stream for the near stratum, or
+  // kFollowStreams for a followed pixel.
+  enum class SlotKind : uint8_t { Grid, NearStratum, Followed };
+  std::vector<SlotKind> replicate_kind_;
+  int add_slot(size_t pixel, SlotKind kind, int streams);
+  bool followed_slot(size_t i) const { return slot_of_[i] >= 0 && replicate_kind_[size_t(slot_of_[i])] == SlotKind::Followed; }
+  void sample_near_stratum(const std::vector<float>& near_bright);
   // Per slot: the pixel, its first stream, its number of streams and the
   // samples each stream has. Per stream: the sum and the brightest sample.
   std::vector<int> replicate_pixel_, replicate_first_, replicate_streams_, replicate_samples_;
