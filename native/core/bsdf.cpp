@@ -116,7 +116,7 @@ void BSDF::finish_lobe(Lobe& l, float prob) {
             : l.transmits()                                      ? kRayTransmission
                                                                  : kRayGlossy;
   if (l.type != Lobe::kBurley && l.type != Lobe::kOrenNayar && !l.is_delta) l.lambda_o = l.ggx.lambda(wo_);
-  if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true;
+  if (l.prob > 0.0f && !l.is_delta) has_smooth_ = true, has_smooth_transmission_ |= l.is_transmit;
 }
 
 BSDF::Lobe& BSDF::add_lobe(Lobe::Type type, float sample_weight) {

@@ -86,6 +86,10 @@ class BSDF {
   float abs_cos(const vec3& w_world) const { return std::abs(glm::dot(w_world, frame_.n)); }
   // False when every lobe is a delta: light sampling cannot contribute.
   bool has_smooth_lobes() const { return has_smooth_; }
+  // The geometric normal when eval() is 0 for every direction behind it (no
+  // smooth lobe transmits: the geometric side decides, eval_lobes), else
+  // null.
+  const vec3* reflects_only_above() const { return has_smooth_transmission_ ? nullptr : &ng_; }
   int num_lobes() const { return num_lobes_; }
 
  private:
@@ -165,7 +169,7 @@ class BSDF {
   int num_lobes_ = 0;
   Lobe lobes_[kMaxLobes];
   float sample_weight_[kMaxLobes];
-  bool has_smooth_ = false;
+  bool has_smooth_ = false, has_smooth_transmission_ = false;
 };
 
 }  // namespace tessera

@@ -251,7 +251,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
     // before (get_1d's number is get_2d's first coordinate).
     const vec2 u_lobe_threshold = sampler.get_2d();
     LightSample ls;
-    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls)) {
+    if (bsdf.has_smooth_lobes() && !lights.empty() && lights.sample(si.p, ns, u_light, ls, bsdf.reflects_only_above())) {
       float bsdf_pdf;
       // Lobes of ray kinds the light is hidden from do not see it.
       const uint8_t excluded = ~ls.visibility & kScatteredRays;

@@ -123,7 +123,12 @@ class LightSampler {
   // that choice, becomes the first coordinate of the point on it (as Cycles'
   // light_distribution_sample reuses its random number), so that the points
   // on each light are stratified with the choice, from one 2D sample.
-  bool sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls) const;
+  // above: when not null, the receiver's BSDF is 0 for every direction
+  // behind the plane through p it is normal to (BSDF::reflects_only_above),
+  // and an emissive triangle or area light wholly behind it gets no sample (false, as a
+  // sample of zero contribution: what sample() would have given it goes
+  // nowhere, the densities do not change).
+  bool sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls, const vec3* above = nullptr) const;
 
   // Densities with which sample() from (p, n) would have produced the
   // direction hitting: the emissive triangle (instance, prim) at distance
@@ -161,7 +166,7 @@ class LightSampler {
   // Probability that sample() from (p, n) picks light entry `entry` (lights,
   // then triangles: the BVH's ids).
   float selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const;
-  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls) const;
+  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls, const vec3* above = nullptr) const;
   std::vector<Light> lights_;
   std::vector<EmissiveTriangle> triangles_;
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit

@@ -507,6 +507,56 @@ TEST(Materials, DiffusePrincipledShortcutIsTheClosureListsBSDF) {
 
 // Principled Alpha a: a white transparent closure of weight 1 - a, the rest
 // scaled by a (Cycles). Transparent samples continue exactly along -wo.
+// Light sampling skips emitters wholly behind a receiver whose BSDF
+// reflects only (LightSampler::sample's `above`): that is the same image
+// only if such a BSDF is 0 for every direction behind the normal it names,
+// bent shading normals, back faces and Cycles 4.x closures included. A BSDF
+// with a smooth transmitting lobe names none (a delta one, which eval()
+// never gives, does not count).
+TEST(Materials, ReflectingBSDFsGiveNothingBehindTheNormalTheyName) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int checked = 0;
+  for (int i = 0; i < 300; ++i) {
+    const vec3 color(u(rng), u(rng), u(rng));
+    const float rough = u(rng);
+    Closure principled = closure(ClosureKind::Principled, 1.0f, color, rough);
+    principled.metallic = u(rng), principled.specular = u(rng);
+    Closure transmissive = principled;
+    transmissive.transmission = 0.5f + 0.5f * u(rng);
+    const float rough_glass = 0.2f + 0.8f * u(rng);
+    const Closure opaque[] = {principled, closure(ClosureKind::Diffuse, 1.0f, color, rough),
+                              closure(ClosureKind::Glossy, 1.0f, color, rough),
+                              closure4(ClosureKind::Principled, color, rough, i % 2 == 0)};
+    const Closure through[] = {transmissive, closure(ClosureKind::Glass, 1.0f, color, rough),
+                               closure(ClosureKind::Glass, 1.0f, color, rough_glass)};
+    const vec3 ng = random_dir(rng);
+    const vec3 ns = glm::normalize(ng + 0.3f * random_dir(rng));
+    vec3 wo = random_dir(rng);
+    if (glm::dot(wo, ng) < 0.0f) wo = -wo;
+    const bool back_face = i % 3 == 0;
+    auto check = [&](const Closure& c) {
+      const BSDF bsdf(ns, ng, with_closures({c}), back_face, wo);
+      const vec3* above = bsdf.reflects_only_above();
+      if (above)
+        for (int j = 0; j < 16; ++j) {
+          vec3 wi = random_dir(rng);
+          if (glm::dot(wi, *above) > 0.0f) wi = -wi;
+          float pdf;
+          EXPECT_EQ(bsdf.eval(wi, &pdf), vec3(0.0f)) << i << " closure " << int(c.kind);
+          ++checked;
+        }
+      return above != nullptr;
+    };
+    for (const Closure& c : opaque) EXPECT_TRUE(check(c)) << i << " closure " << int(c.kind);
+    for (const Closure& c : through) check(c);
+    // Rough glass seen from outside refracts (from inside, past the critical
+    // angle, Cycles 3.x's glass only reflects: then it names its normal).
+    if (!back_face) EXPECT_FALSE(check(through[2])) << i << " rough glass";
+  }
+  EXPECT_GE(checked, 300 * 4 * 16);
+}
+
 TEST(Materials, AlphaIsATransparentClosure) {
   Material m;
   m.base_color = vec3(0.7f, 0.5f, 0.3f);
