@@ -20,6 +20,13 @@ using fixtures::render;
 using fixtures::Result;
 
 namespace {
+// A linear congruential generator: uniform floats in [0, 1) from a seed,
+// the same on every platform (the film tests' pixel values).
+struct Rng {
+  uint32_t state;
+  float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
+};
+
 double rmse(const std::vector<float>& a, const std::vector<float>& b) {
   double e = 0.0;
   size_t n = 0;
@@ -408,10 +415,6 @@ TEST(Controls, ErrorEstimateFollowsBrightPixelsOffTheGrid) {
   for (int k = 0; k < 23; ++k) lit.emplace_back(1 + 2 * ((7 * k + 3) % 23), 1 + 2 * ((11 * k + 5) % 23));
   std::vector<float> share(size_t(w) * h, 0.0f);
   for (auto [x, y] : lit) share[size_t(y) * w + x] = 0.3f;
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   auto sample = [&](size_t i, Rng& u) {
     const float n = 0.25f * (u() - 0.5f);
     return share[i] > 0.0f && u() < share[i] ? vec3(300.0f + n) : vec3(1.0f + n);
@@ -470,10 +473,6 @@ TEST(Controls, ErrorEstimateFollowsThisImagesErrorNotTheExpectedOne) {
   for (int k = 0; k < 23; ++k) lit.emplace_back(1 + 2 * ((7 * k + 3) % 23), 1 + 2 * ((11 * k + 5) % 23));
   std::vector<float> share(size_t(w) * h, 0.0f);
   for (size_t k = 0; k < lit.size(); ++k) share[size_t(lit[k].second) * w + lit[k].first] = 0.15f + 0.01f * float(k);
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   // Sample s of a stream with phase u hits the light when the stratified
   // count floor(s p + u) steps up: any n samples hit it floor or ceil of n p
   // times. The image's streams also hit it at samples 0 and 1.
@@ -533,10 +532,6 @@ TEST(Controls, ErrorEstimateFollowsThisImagesErrorNotTheExpectedOne) {
 // sample the stratum counts the whole grid's mean.
 TEST(Controls, ErrorEstimateDoesNotLetOneGridPixelStandForThePixelsNearALight) {
   const int w = 48, h = 48, bx = 24, by = 24;
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   // Every pixel 1 + uniform noise; the bright one 300 + 0.43 in the image
   // (its error: half the image's squared error) and 300 in its replicate.
   auto value = [&](size_t i, Rng& u, float offset) {
@@ -576,10 +571,6 @@ TEST(Controls, ErrorEstimateDoesNotLetOneGridPixelStandForThePixelsNearALight) {
 // (every k-th, inside and on the edge in their shares) stands for them.
 TEST(Controls, ErrorEstimateSamplesThePixelsNearALightBeyondTheGrid) {
   const int w = 96, h = 96, x0 = 9, x1 = 34, y0 = 9, y1 = 22;  // the light's pixels; its edge off the grid
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   // The light covers a share of its edge pixels, which their samples find
   // in a stratified count (floor((s + 1) p + u) steps up; u: each stream's
   // phase); inside it every sample sees it; elsewhere 1 + uniform noise.
@@ -638,10 +629,6 @@ TEST(Controls, ErrorEstimateSamplesThePixelsNearALightBeyondTheGrid) {
 // stratum has doubled, it does not.
 TEST(Controls, ErrorEstimateDrawsTheNearStratumAgainAsItGrows) {
   const int w = 96, h = 96;
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   // The light: pixels (9..34, 9..22) at 300 +- 200; the lower half (y >=
   // 40): 5, or 400 in one sample of 1024 (over the bright threshold);
   // elsewhere 1 + uniform noise.
@@ -678,10 +665,6 @@ TEST(Controls, ErrorEstimateDrawsTheNearStratumAgainAsItGrows) {
 
 TEST(Controls, ErrorEstimateFollowsOnlyWhereTheBrightPixelsCarryTheError) {
   const int w = 48, h = 48;
-  struct Rng {
-    uint32_t state;
-    float operator()() { return float((state = state * 1664525u + 1013904223u) >> 8) / float(1 << 24); }
-  };
   auto run = [&](float bright_noise) {
     Film film;
     film.resize(w, h, true);
