@@ -125,9 +125,8 @@ class LightSampler {
   // on each light are stratified with the choice, from one 2D sample.
   // above: when not null, the receiver's BSDF is 0 for every direction
   // behind the plane through p it is normal to (BSDF::reflects_only_above),
-  // and an emissive triangle or area light wholly behind it gets no sample (false, as a
-  // sample of zero contribution: what sample() would have given it goes
-  // nowhere, the densities do not change).
+  // and an emissive triangle or area light wholly behind it gets no sample
+  // (false, as a sample of zero contribution: the densities do not change).
   bool sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls, const vec3* above = nullptr) const;
 
   // Densities with which sample() from (p, n) would have produced the
@@ -166,7 +165,7 @@ class LightSampler {
   // Probability that sample() from (p, n) picks light entry `entry` (lights,
   // then triangles: the BVH's ids).
   float selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const;
-  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls, const vec3* above = nullptr) const;
+  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls, const vec3* above) const;
   std::vector<Light> lights_;
   std::vector<EmissiveTriangle> triangles_;
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit
