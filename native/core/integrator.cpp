@@ -212,7 +212,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       float w = 1.0f;
       if (!count_emission_fully) {
         float cos_l = std::abs(glm::dot(ray.d, si.ng));
-        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(prev_p, prev_n, hit.instance, hit.prim, mis_t + hit.t, cos_l));
+        w = power_heuristic(prev_bsdf_pdf, lights.pdf_triangle(prev_p, prev_n, ray.d, hit.instance, hit.prim, mis_t + hit.t, cos_l));
       }
       add(bounce, beta * le * w);
     }

@@ -6,6 +6,9 @@ namespace tessera {
 
 namespace {
 
+// Whether the receiver has a normal for the rectangles' cosine warp.
+bool has_normal(const vec3& n) { return glm::dot(n, n) > 0.0f; }
+
 // Cosine of the angle between the direction w (unit, from the light) and the
 // spot's axis: in the light object's own space in Cycles 4.x (elliptical
 // cones under non-uniform scale), around `direction` otherwise.
@@ -481,10 +484,10 @@ bool LightSampler::sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls,
     if (!bvh_.sample(p, n, u_rest, &entry, &bvh_pmf, &u_rest)) return false;
     pmf *= bvh_pmf;
   }
-  return sample_entry(entry, pmf, p, vec2(u_rest, u.y), ls, above);
+  return sample_entry(entry, pmf, p, n, vec2(u_rest, u.y), ls, above);
 }
 
-bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls,
+bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, const vec3& n, vec2 u, LightSample& ls,
                                 const vec3* above) const {
   const uint32_t nl = uint32_t(lights_.size());
   if (entry == kTopWorld) {
@@ -507,13 +510,14 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       if (da <= 0.0f && da + d1 <= 0.0f && da + d2 <= 0.0f && (!t.rectangle() || da + d1 + d2 <= 0.0f)) return false;
     }
     // Uniformly in the solid angle the emitter subtends (omega > 0), or by area.
-    const EmitterSampling how(t, p);
+    EmitterSampling how(t, p);
     const float omega = how.omega;
     if (omega < 0.0f) return false;  // in its plane
     vec3 q;
-    float dist2;
+    float dist2, density = 1.0f;  // the rectangle's cosine warp's
     if (omega > 0.0f && t.rectangle()) {
-      const vec3 w = how.rect.sample_offset(u);  // from p to the point
+      if (has_normal(n)) how.rect.warp_by_cosine(n);
+      const vec3 w = how.rect.sample_offset(u, &density);  // from p to the point
       dist2 = glm::dot(w, w);
       if (!(dist2 > 0.0f)) return false;
       ls.dist = std::sqrt(dist2);
@@ -557,7 +561,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
     if (!(stop_short < ls.dist)) return false;  // too grazing to tell the light from its plane
     ls.dist -= stop_short;
     ls.li = cos_l > 0.0f ? t.le_front : t.le_back;
-    ls.pdf = omega > 0.0f ? pmf / omega : pmf * dist2 / (std::abs(cos_l) * t.area);
+    ls.pdf = omega > 0.0f ? pmf * density / omega : pmf * dist2 / (std::abs(cos_l) * t.area);
     ls.is_delta = false;
     ls.visibility = t.visibility | kRayShadow;  // the object's own Shadow flag is about blocking
     return max_component(ls.li) > 0.0f;
@@ -646,8 +650,10 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       AreaRegion r;
       if (!area_region(l, p, &r)) return false;
       vec3 q;
+      float density = 1.0f;  // the rectangle's cosine warp's
       if (r.by_solid_angle) {
-        q = r.rect.sample(u);
+        if (has_normal(n)) r.rect.warp_by_cosine(n);
+        q = p + r.rect.sample_offset(u, &density);
       } else {
         const vec2 s = r.kind == AreaRegion::Rectangle ? 2.0f * u - vec2(1.0f) : sample_uniform_disk_concentric(u);
         q = r.centre + s.x * r.eu + s.y * r.ev;
@@ -663,7 +669,7 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
       const float atten = spread_attenuation(l, ls.wi);
       if (!(atten > 0.0f)) return false;
       ls.li = l.radiance * atten;
-      ls.pdf = r.by_solid_angle ? pmf / r.rect.solid_angle() : pmf * dist2 / (cos_l * r.area);
+      ls.pdf = r.by_solid_angle ? pmf * density / r.rect.solid_angle() : pmf * dist2 / (cos_l * r.area);
       return true;
     }
     default:
@@ -671,8 +677,8 @@ bool LightSampler::sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u
   }
 }
 
-float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance, uint32_t prim, float dist,
-                                 float cos_l) const {
+float LightSampler::pdf_triangle(const vec3& p, const vec3& n, const vec3& wi, uint32_t instance, uint32_t prim,
+                                 float dist, float cos_l) const {
   const uint64_t key = (uint64_t(instance) << 32) | prim;
   auto it = std::lower_bound(triangle_keys_.begin(), triangle_keys_.end(), key);
   if (it == triangle_keys_.end() || *it != key || cos_l <= 0.0f) return 0.0f;
@@ -680,19 +686,26 @@ float LightSampler::pdf_triangle(const vec3& p, const vec3& n, uint32_t instance
   const float pmf = selection_pmf(uint32_t(lights_.size()) + t, p, n);
   if (pmf <= 0.0f) return 0.0f;
   const EmissiveTriangle& e = triangles_[t];
-  const float omega = EmitterSampling(e, p).omega;
+  EmitterSampling how(e, p);
+  const float omega = how.omega;
   if (omega < 0.0f) return 0.0f;  // in its plane: sample() gives no sample
-  return omega > 0.0f ? pmf / omega : pmf * dist * dist / (cos_l * e.area);
+  if (omega == 0.0f) return pmf * dist * dist / (cos_l * e.area);
+  if (e.rectangle() && has_normal(n) && how.rect.warp_by_cosine(n)) return pmf * how.rect.density(wi * dist) / omega;
+  return pmf / omega;
 }
 
-float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const {
+float LightSampler::pdf_area(uint32_t light, const vec3& p, const vec3& n, const vec3& wi, float dist,
+                             float cos_l) const {
   if (cos_l <= 0.0f) return 0.0f;
   // The region sample() samples from p. A point of the light outside it
   // (possible with spread) has no emission towards p, so its density does
   // not matter.
   AreaRegion r;
   if (!area_region(lights_[light], p, &r)) return 0.0f;
-  if (r.by_solid_angle) return selection_pmf(light, p, n) / r.rect.solid_angle();
+  if (r.by_solid_angle) {
+    const float density = has_normal(n) && r.rect.warp_by_cosine(n) ? r.rect.density(wi * dist) : 1.0f;
+    return selection_pmf(light, p, n) * density / r.rect.solid_angle();
+  }
   return selection_pmf(light, p, n) * dist * dist / (cos_l * r.area);
 }
 
@@ -746,7 +759,7 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
       best = int(i);
       *t_hit = t;
       *le = l.radiance * atten;
-      *pdf = pdf_area(i, p, n, t, -denom);
+      *pdf = pdf_area(i, p, n, d, t, -denom);
     } else if (l.sphere) {
       // Cycles 4.x's sphere light (point_light_intersect); a spot is only
       // hit by rays heading towards its centre (spot_light_intersect).

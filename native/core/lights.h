@@ -127,15 +127,19 @@ class LightSampler {
   // behind the plane through p it is normal to (BSDF::reflects_only_above),
   // and an emissive triangle or area light wholly behind it gets no sample
   // (false, as a sample of zero contribution: the densities do not change).
+  // n (unit, or 0 for none) is the receiver's shading normal: the lights'
+  // importance looks at it, and rectangles near p follow its |cos|
+  // (SphericalRectangle::warp_by_cosine).
   bool sample(const vec3& p, const vec3& n, vec2 u, LightSample& ls, const vec3* above = nullptr) const;
 
   // Densities with which sample() from (p, n) would have produced the
-  // direction hitting: the emissive triangle (instance, prim) at distance
+  // direction wi (unit) hitting: the emissive triangle (instance, prim) at distance
   // dist with cosine cos_l; area light `light`; point/spot light `light`
   // with a radius (a sphere light: by the cone it subtends from p; otherwise
   // seen as the disk facing p, at dist with cosine cos_l); the world.
-  float pdf_triangle(const vec3& p, const vec3& n, uint32_t instance, uint32_t prim, float dist, float cos_l) const;
-  float pdf_area(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
+  float pdf_triangle(const vec3& p, const vec3& n, const vec3& wi, uint32_t instance, uint32_t prim, float dist,
+                     float cos_l) const;
+  float pdf_area(uint32_t light, const vec3& p, const vec3& n, const vec3& wi, float dist, float cos_l) const;
   float pdf_sphere(uint32_t light, const vec3& p, const vec3& n, float dist, float cos_l) const;
   float pdf_background(const vec3& wi) const;
   // The probability of picking the world among the lights (pdf_background =
@@ -165,7 +169,8 @@ class LightSampler {
   // Probability that sample() from (p, n) picks light entry `entry` (lights,
   // then triangles: the BVH's ids).
   float selection_pmf(uint32_t entry, const vec3& p, const vec3& n) const;
-  bool sample_entry(uint32_t entry, float pmf, const vec3& p, vec2 u, LightSample& ls, const vec3* above) const;
+  bool sample_entry(uint32_t entry, float pmf, const vec3& p, const vec3& n, vec2 u, LightSample& ls,
+                    const vec3* above) const;
   std::vector<Light> lights_;
   std::vector<EmissiveTriangle> triangles_;
   std::vector<uint64_t> triangle_keys_;  // (instance << 32 | prim), sorted, for lookups on hit

@@ -57,6 +57,18 @@ bool sample_spherical_triangle(const vec3& a, const vec3& b, const vec3& c, floa
                     : sample_spherical_triangle_in<float>(a, b, c, area, u, w);
 }
 
+namespace {
+// An angle from its cosine: acos_poly in float, std::acos in double.
+template <typename Real>
+Real angle_of(Real c) {
+  if constexpr (std::is_same_v<Real, float>) {
+    return acos_poly(c);
+  } else {
+    return std::acos(std::clamp(c, Real(-1), Real(1)));
+  }
+}
+}  // namespace
+
 template <typename Real>
 bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const vec3& ex_, const vec3& ey_) {
   const V ex(ex_), ey(ey_);
@@ -77,15 +89,8 @@ bool SphericalRectangleT<Real>::init(const vec3& o, const vec3& corner, const ve
   const Real z2 = z0 * z0;
   const Real l0 = std::sqrt(z2 + y0 * y0), l1 = std::sqrt(z2 + x1 * x1);
   const Real l2 = std::sqrt(z2 + y1 * y1), l3 = std::sqrt(z2 + x0 * x0);
-  auto angle = [](Real c) {
-    if constexpr (std::is_same_v<Real, float>) {
-      return acos_poly(c);
-    } else {
-      return std::acos(std::clamp(c, Real(-1), Real(1)));
-    }
-  };
-  const Real g0 = angle(x1 * y0 / (l0 * l1)), g1 = angle(-x1 * y1 / (l1 * l2));
-  const Real g2 = angle(x0 * y1 / (l2 * l3)), g3 = angle(-x0 * y0 / (l3 * l0));
+  const Real g0 = angle_of(x1 * y0 / (l0 * l1)), g1 = angle_of(-x1 * y1 / (l1 * l2));
+  const Real g2 = angle_of(x0 * y1 / (l2 * l3)), g3 = angle_of(-x0 * y0 / (l3 * l0));
   b0 = -y0 / l0, b1 = y1 / l2;
   q = z2 / (l0 * l0);  // 1 - b0^2, without its cancellation
   k = Real(2) * Real(M_PI) - g2 - g3;
@@ -116,6 +121,27 @@ vec3 SphericalRectangleT<Real>::sample_offset(vec2 u) const {
   return vec3(xu * x + std::clamp(yv, y0, y1) * y + z0 * z);
 }
 
+template <typename Real>
+vec2 SphericalRectangleT<Real>::invert(const vec3& offset_) const {
+  // The point in the rectangle's plane z = z0 along the offset.
+  const V w(offset_);
+  const Real wz = glm::dot(w, z);
+  if (!(wz < 0)) return vec2(0.5f);
+  const Real s = z0 / wz;
+  const Real xu = std::clamp(s * glm::dot(w, x), x0, x1), yv = std::clamp(s * glm::dot(w, y), y0, y1);
+  // The sub-rectangle [x0, xu] x [y0, y1]: init's angle excess with x1
+  // replaced by xu (g2, g3 and so k do not depend on x1).
+  const Real z2 = z0 * z0;
+  const Real l0 = std::sqrt(z2 + y0 * y0), lu = std::sqrt(z2 + xu * xu), l2 = std::sqrt(z2 + y1 * y1);
+  const Real s_u = angle_of(xu * y0 / (l0 * lu)) + angle_of(-xu * y1 / (lu * l2)) - k;
+  // The height's place between the column's ends (sample_offset's hv).
+  const Real dd2 = xu * xu + z2;
+  const Real h0 = y0 / std::sqrt(dd2 + y0 * y0), h1 = y1 / std::sqrt(dd2 + y1 * y1);
+  const Real hv = yv / std::sqrt(dd2 + yv * yv);
+  const Real v = h1 > h0 ? (hv - h0) / (h1 - h0) : Real(0.5);
+  return vec2(float(std::clamp(s_u / S, Real(0), Real(1))), float(std::clamp(v, Real(0), Real(1))));
+}
+
 template struct SphericalRectangleT<float>;
 template struct SphericalRectangleT<double>;
 
@@ -123,7 +149,73 @@ bool SphericalRectangle::init(const vec3& o, const vec3& corner, const vec3& ex,
                               float reach) {
   o_ = o;
   near_plane_ = std::abs(height) < 0.01f * reach;
+  warped_ = false;
   return near_plane_ ? d_.init(o, corner, ex, ey) : f_.init(o, corner, ex, ey);
+}
+
+namespace {
+// The corner weights of the cosine warp (u order (0,0), (1,0), (0,1),
+// (1,1)), and whether their bilinear fit holds (SphericalRectangle::
+// warp_by_cosine). The fit is checked where the cosine peaks: at the
+// middles of the edges, the centre, and the point of the rectangle nearest
+// the receiver's normal (where the normal meets its plane, clamped to it;
+// with no such point, the edge it leans towards). Against the fit there
+// taken bilinear in the plane's coordinates, close enough to u's for a
+// bound on a ratio.
+template <typename Real>
+bool cosine_warp_weights(const SphericalRectangleT<Real>& r, const vec3& n_, float w[4]) {
+  // In the rectangle's orthonormal frame the point (xu, yv) is the offset
+  // (xu, yv, z0): its cosine to n is |xu nx + yv ny + z0 nz| / sqrt(xu^2 +
+  // yv^2 + z0^2), a few multiplications a point.
+  const glm::vec<3, Real> n(n_);
+  const float nx = float(glm::dot(n, r.x)), ny = float(glm::dot(n, r.y)), nz = float(glm::dot(n, r.z));
+  const float x0 = float(r.x0), x1 = float(r.x1), y0 = float(r.y0), y1 = float(r.y1), z0 = float(r.z0);
+  const float xm = 0.5f * (x0 + x1), ym = 0.5f * (y0 + y1);
+  // The normal's point (nz < 0: n meets the plane z = z0 at t = z0 / nz).
+  const float t = nz < 0.0f ? z0 / nz : 1e30f;
+  const float xf = std::clamp(t * nx, x0, x1), yf = std::clamp(t * ny, y0, y1);
+  // The four corners (u order), the middles of the edges, the centre, the normal's point.
+  constexpr int kPoints = 10;
+  const float px[kPoints] = {x0, x1, x0, x1, xm, xm, x0, x1, xm, xf};
+  const float py[kPoints] = {y0, y0, y1, y1, y0, y1, ym, ym, ym, yf};
+  const auto cosine = [&](int i) {
+    return std::abs(px[i] * nx + py[i] * ny + z0 * nz) / std::sqrt(px[i] * px[i] + py[i] * py[i] + z0 * z0);
+  };
+  for (int i = 0; i < 4; ++i) w[i] = std::max(cosine(i), SphericalRectangle::kMinWarpCosine);
+  // Nearly even corners: a warp nearly uniform, not worth its cost.
+  if (std::max(std::max(w[0], w[1]), std::max(w[2], w[3])) <
+      SphericalRectangle::kEvenCorners * std::min(std::min(w[0], w[1]), std::min(w[2], w[3])))
+    return false;
+  const float inv_dx = 1.0f / (x1 - x0), inv_dy = 1.0f / (y1 - y0);
+  bool fits = true;
+  for (int i = 4; i < kPoints; ++i) {
+    const float fx = (px[i] - x0) * inv_dx, fy = (py[i] - y0) * inv_dy;
+    const float fit = (1.0f - fy) * ((1.0f - fx) * w[0] + fx * w[1]) + fy * ((1.0f - fx) * w[2] + fx * w[3]);
+    fits = fits && cosine(i) <= SphericalRectangle::kWarpFit * fit;
+  }
+  return fits;
+}
+}  // namespace
+
+bool SphericalRectangle::warp_by_cosine(const vec3& n) {
+  warped_ = solid_angle() >= kMinWarpSolidAngle &&
+            (near_plane_ ? cosine_warp_weights(d_, n, w_) : cosine_warp_weights(f_, n, w_));
+  return warped_;
+}
+
+vec3 SphericalRectangle::sample_offset(vec2 u, float* density) const {
+  if (!warped_) {
+    *density = 1.0f;
+    return sample_offset(u);
+  }
+  const vec2 uw = sample_bilinear(u, w_);
+  *density = bilinear_pdf(uw, w_);
+  return sample_offset(uw);
+}
+
+float SphericalRectangle::density(const vec3& offset) const {
+  if (!warped_) return 1.0f;
+  return bilinear_pdf(near_plane_ ? d_.invert(offset) : f_.invert(offset), w_);
 }
 
 AliasTable::AliasTable(const std::vector<float>& weights) {

@@ -107,6 +107,11 @@ struct SphericalRectangleT {
   // in solid angle from o), less o: without the rounding of adding o and
   // taking it off again (far from the world origin o is large).
   vec3 sample_offset(vec2 u) const;
+  // The u that sample_offset takes to the point o + offset of the
+  // rectangle (offset: any vector from o towards it): u.x the solid angle
+  // of the sub-rectangle [x0, xu] over S, u.y where the height lies between
+  // the column's ends. For the density of a warped u (SphericalRectangle).
+  vec2 invert(const vec3& offset) const;
 
   V x, y, z;               // local frame: x, y along the edges, z towards the rectangle's plane
   Real z0, x0, x1, y0, y1; // the rectangle in that frame (z0 <= 0)
@@ -120,6 +125,14 @@ struct SphericalRectangleT {
 // irradiance). The same rule as for spherical triangles. height: o's
 // distance from the rectangle's plane; reach: o's distance from its middle
 // plus half its diagonal (both of which the callers have at hand).
+//
+// With a receiver's normal (warp_by_cosine), the directions follow its
+// |cos| as well: u is first drawn by the bilinear density whose corners
+// are the |cos| towards the rectangle's corners (Hart et al. 2020,
+// "Practical product sampling by fitting and composing warps"; pbrt-v4
+// warps its spherical triangles and bilinear patches alike), so that a
+// light beside a receiver sends fewer samples where it is seen at a grazing
+// angle. The direction's density is then density / solid_angle().
 class SphericalRectangle {
  public:
   bool init(const vec3& o, const vec3& corner, const vec3& ex, const vec3& ey, float height, float reach);
@@ -127,12 +140,62 @@ class SphericalRectangle {
   vec3 sample(vec2 u) const { return o_ + sample_offset(u); }
   vec3 sample_offset(vec2 u) const { return near_plane_ ? d_.sample_offset(u) : f_.sample_offset(u); }
 
+  // Sets up the warp for a receiver with (unit) normal n, unless the
+  // corners' bilinear fit misses the cosine: where the cosine at an edge's
+  // middle, the centre or the point nearest the normal is over kWarpFit
+  // times the fit there (a wall beside a ceiling panel, turned to it, sees
+  // its largest cosine at the middle of the panel's near edge and next to
+  // none at the corners), warped samples there would weigh more than
+  // uniform ones, and the rectangle is sampled uniformly. Nor where the
+  // warp would buy little for its cost: the rectangle under
+  // kMinWarpSolidAngle, or its corners' cosines nearly even. Returns
+  // whether it warps. (On modern_hall.blend, 120 px, 64 spp, two sets of 8
+  // seeds: variance -2.6% / -2.1%, core time +1.6%; without the guard -2.7%
+  // / -2.3%, with kWarpFit 2 -2.1% / -1.6%. Beside a light, tests
+  // LightSampling.CosineWarped*: 0.11-0.35x the variance.)
+  bool warp_by_cosine(const vec3& n);
+  // sample_offset() after the warp; *density: the warp's density at u (1 unwarped).
+  vec3 sample_offset(vec2 u, float* density) const;
+  // The warp's density for the point o + offset of the rectangle (1 unwarped).
+  float density(const vec3& offset) const;
+
+  static constexpr float kMinWarpCosine = 0.01f;  // a corner's least weight (pbrt-v4's)
+  static constexpr float kWarpFit = 3.0f;
+  static constexpr float kMinWarpSolidAngle = 0.1f;  // sr
+  static constexpr float kEvenCorners = 1.25f;  // no warp when the corners' largest is below this x their least
+
  private:
   vec3 o_;
   bool near_plane_ = false;
+  bool warped_ = false;
+  float w_[4];  // the bilinear warp's corner weights, u (0,0), (1,0), (0,1), (1,1)
   SphericalRectangleT<float> f_;
   SphericalRectangleT<double> d_;
 };
+
+// A density on [0,1] linear from a at 0 to b at 1 (a, b >= 0, not both 0):
+// p(x) = 2 ((1 - x) a + x b) / (a + b). Its inverse CDF, the root of
+// (b - a) x^2 + 2 a x = u (a + b) in [0,1] written without the cancellation
+// of (sqrt(...) - a) / (b - a): x = u (a + b) / (a + sqrt((1 - u) a^2 + u b^2)).
+inline float sample_linear(float u, float a, float b) {
+  const float den = a + std::sqrt((1.0f - u) * a * a + u * b * b);
+  return den > 0.0f ? std::min(u * (a + b) / den, 0x1.fffffep-1f) : u;
+}
+
+// A density on [0,1]^2 bilinear in the corner values w[0] at (0,0), w[1] at
+// (1,0), w[2] at (0,1), w[3] at (1,1): 4 bilerp(w, p) / sum(w). Sampled as
+// y by its marginal (linear from w0 + w1 to w2 + w3), then x given y (linear
+// from lerp(w0, w2, y) to lerp(w1, w3, y)).
+inline vec2 sample_bilinear(vec2 u, const float w[4]) {
+  const float y = sample_linear(u.y, w[0] + w[1], w[2] + w[3]);
+  return vec2(sample_linear(u.x, w[0] + y * (w[2] - w[0]), w[1] + y * (w[3] - w[1])), y);
+}
+inline float bilinear_pdf(vec2 p, const float w[4]) {
+  const float sum = w[0] + w[1] + w[2] + w[3];
+  if (!(sum > 0.0f)) return 1.0f;
+  return 4.0f * ((1.0f - p.x) * (1.0f - p.y) * w[0] + p.x * (1.0f - p.y) * w[1] + (1.0f - p.x) * p.y * w[2] +
+                 p.x * p.y * w[3]) / sum;
+}
 
 inline float power_heuristic(float f_pdf, float g_pdf) {
   float f = f_pdf * f_pdf, g = g_pdf * g_pdf;
