@@ -4,17 +4,23 @@ namespace tessera {
 
 // Blender's equirectangular mapping (Cycles direction_to_equirectangular):
 // u = -atan2(y, x) / 2pi + 1/2, v = atan2(z, hypot(x, y)) / pi + 1/2.
-vec2 Background::direction_to_uv(const vec3& world_dir) const {
+// sin_theta: the direction's distance from the texture's pole axis, the
+// sin of its polar angle (its length is 1).
+vec2 Background::direction_to_uv(const vec3& world_dir, float* sin_theta) const {
   vec3 d = rotation_ * world_dir;
-  float u = -std::atan2(d.y, d.x) / (2.0f * kPi) + 0.5f;
-  float v = std::atan2(d.z, std::hypot(d.x, d.y)) / kPi + 0.5f;
+  *sin_theta = std::sqrt(d.x * d.x + d.y * d.y);
+  float u = -atan2_poly(d.y, d.x) / (2.0f * kPi) + 0.5f;
+  float v = atan2_poly(d.z, *sin_theta) / kPi + 0.5f;
   return vec2(u, v);
 }
 
-vec3 Background::uv_to_direction(vec2 uv) const {
-  float phi = kPi * (1.0f - 2.0f * uv.x);
-  float theta = kPi * (1.0f - uv.y);  // polar angle from +z
-  vec3 d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+// The polar angle from +z is theta = pi (1 - v) and the azimuth phi = pi (1 -
+// 2u): (cos phi, sin phi) = (-cos 2 pi u, sin 2 pi u), (cos theta, sin theta)
+// = (-cos pi v, sin pi v), with pi v = 2 pi (v / 2).
+vec3 Background::uv_to_direction(vec2 uv, float* sin_theta) const {
+  const vec2 cs_u = cos_sin_2pi(uv.x), cs_v = cos_sin_2pi(0.5f * uv.y);
+  *sin_theta = cs_v.y;
+  vec3 d(-cs_v.y * cs_u.x, cs_v.y * cs_u.y, -cs_v.x);
   return glm::transpose(rotation_) * d;
 }
 
@@ -78,8 +84,9 @@ vec3 Background::Le(const vec3& dir, float* pdf) const {
     if (pdf) *pdf = kUniformSpherePdf;
     return color_;
   }
-  const vec2 uv = direction_to_uv(dir);
-  if (pdf) *pdf = pdf_uv(uv);
+  float sin_theta;
+  const vec2 uv = direction_to_uv(dir, &sin_theta);
+  if (pdf) *pdf = pdf_uv(uv, sin_theta);
   return strength_ * lookup(uv);
 }
 
@@ -94,9 +101,9 @@ bool Background::sample(vec2 u, vec3* wi, float* pdf, vec3* le) const {
   size_t row, col;
   float v = marginal_.sample_continuous(u.y, &pdf_v, &row);
   float uu = conditional_[row].sample_continuous(u.x, &pdf_u, &col);
-  float sin_theta = std::sin(kPi * (1.0f - v));
+  float sin_theta;
+  *wi = uv_to_direction(vec2(uu, v), &sin_theta);
   if (sin_theta <= 0.0f || pdf_u * pdf_v <= 0.0f) return false;
-  *wi = uv_to_direction(vec2(uu, v));
   *pdf = pdf_u * pdf_v / (2.0f * kPi * kPi * sin_theta);
   if (le) *le = strength_ * lookup(vec2(uu, v));
   return true;
@@ -104,8 +111,7 @@ bool Background::sample(vec2 u, vec3* wi, float* pdf, vec3* le) const {
 
 // The density of sample() at texture coordinates uv, per unit solid angle:
 // the piecewise-constant density in (u, v) over the Jacobian 2 pi^2 sin(theta).
-float Background::pdf_uv(vec2 uv) const {
-  float sin_theta = std::sin(kPi * (1.0f - uv.y));
+float Background::pdf_uv(vec2 uv, float sin_theta) const {
   if (sin_theta <= 0.0f || marginal_.integral <= 0.0f) return 0.0f;
   int col = std::clamp(int(uv.x * width_), 0, width_ - 1);
   int row = std::clamp(int(uv.y * height_), 0, height_ - 1);
@@ -115,7 +121,9 @@ float Background::pdf_uv(vec2 uv) const {
 
 float Background::pdf(const vec3& wi) const {
   if (!has_image_) return kUniformSpherePdf;
-  return pdf_uv(direction_to_uv(wi));
+  float sin_theta;
+  const vec2 uv = direction_to_uv(wi, &sin_theta);
+  return pdf_uv(uv, sin_theta);
 }
 
 float Background::average_luminance() const {

@@ -35,10 +35,12 @@ class Background {
   uint8_t visibility() const { return visibility_; }
 
  private:
-  vec2 direction_to_uv(const vec3& dir) const;
-  vec3 uv_to_direction(vec2 uv) const;
+  // Texture coordinates and back, each with the sin of the polar angle
+  // that the density's Jacobian needs.
+  vec2 direction_to_uv(const vec3& dir, float* sin_theta) const;
+  vec3 uv_to_direction(vec2 uv, float* sin_theta) const;
   vec3 lookup(vec2 uv) const;
-  float pdf_uv(vec2 uv) const;
+  float pdf_uv(vec2 uv, float sin_theta) const;
 
   uint8_t visibility_ = kRayCamera | kScatteredRays;
   vec3 color_{0.0f};

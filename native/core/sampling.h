@@ -52,8 +52,9 @@ inline float spherical_triangle_area(const vec3& a, const vec3& b, const vec3& c
   const glm::dvec3 da(a), db(b), dc(c);
   const double num = std::abs(glm::dot(da, glm::cross(db, dc)));
   const double den = 1.0 + glm::dot(da, db) + glm::dot(db, dc) + glm::dot(dc, da);
-  // num and den are exact enough in float now; float atan2 is the cheaper one.
-  return 2.0f * std::atan2(float(num), float(den));
+  // num and den are exact enough in float now; the inline float atan2 is
+  // the cheaper one (within 1.6e-7 relative: math.h).
+  return 2.0f * atan2_poly(float(num), float(den));
 }
 
 // Direction uniformly distributed in solid angle over the spherical triangle
