@@ -75,9 +75,11 @@ ap.add_argument("--out", default=os.path.join(HERE, "..", "docs", "convergence")
 args = ap.parse_args(argv)
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "blender"))
 sys.path.insert(0, args.addon)
+sys.path.insert(0, HERE)
 
 import tessera  # noqa: E402
 from helpers import render, set_size  # noqa: E402
+from efficiency import time_for_mse  # noqa: E402
 
 if not hasattr(bpy.types.Scene, "tessera"):
     tessera.register()
@@ -115,19 +117,12 @@ def metrics(img, ref):
 
 
 def efficiency_at(tessera_rows, cycles_row):
-    """Cycles' time for cycles_row over the time Tessera needs for the same MSE (own references): Tessera's
-    time interpolated in log MSE / log time between the two ladder points around that MSE (extrapolated
-    from the nearest pair outside the ladder)."""
-    if not cycles_row or len(tessera_rows) < 2:
+    """Cycles' time for cycles_row over the time Tessera needs for the same MSE (own references), read off
+    Tessera's ladder (efficiency.time_for_mse)."""
+    if not cycles_row:
         return None
-    target = cycles_row["rmse_own"] ** 2
-    pts = sorted((r["rmse_own"] ** 2, r["seconds"]) for r in tessera_rows)
-    pair = next((p for p in zip(pts, pts[1:]) if p[0][0] <= target <= p[1][0] and p[1][0] > p[0][0]), None)
-    if pair is None:
-        pair = (pts[0], pts[1]) if target < pts[0][0] else (pts[-2], pts[-1])
-    (m1, t1), (m2, t2) = pair
-    f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
-    return cycles_row["seconds"] / math.exp(math.log(t1) + f * (math.log(t2) - math.log(t1)))
+    t = time_for_mse([(r["rmse_own"] ** 2, r["seconds"]) for r in tessera_rows], cycles_row["rmse_own"] ** 2)
+    return None if t is None else cycles_row["seconds"] / t
 
 
 rows = []
