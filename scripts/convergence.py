@@ -79,7 +79,7 @@ sys.path.insert(0, HERE)
 
 import tessera  # noqa: E402
 from helpers import render, set_size  # noqa: E402
-from efficiency import time_for_mse  # noqa: E402
+from efficiency import cpu_name, time_for_mse  # noqa: E402
 
 if not hasattr(bpy.types.Scene, "tessera"):
     tessera.register()
@@ -308,7 +308,7 @@ for path in args.scenes:
     runner = ("blender -b --factory-startup --python" if bpy.app.binary_path
               else "$(scripts/setup_bpy.sh " + ".".join(bpy.app.version_string.split(".")[:2]) + ".*)")
     cmd = runner + " scripts/convergence.py -- " + " ".join(argv)
-    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), "unknown CPU")
+    cpu = cpu_name()
     lines = ["# Convergence: error against time, Tessera and Cycles", "",
              f"Blender {bpy.app.version_string}, {cpu}, {os.cpu_count()} cores, {time.strftime('%Y-%m-%d')}, width {args.width} px, "
              f"{args.bounces} max bounces, references {args.ref_samples} samples (seed 1000). Each point of the sample "

@@ -1,6 +1,6 @@
 """The efficiency comparison the convergence studies share (issue 5): the time
 one engine needs for a given mean squared error, read off its ladder of
-renders at several sample counts."""
+renders at several sample counts, and the machine the studies name."""
 
 import math
 
@@ -19,3 +19,9 @@ def time_for_mse(points, target):
     (m1, t1), (m2, t2) = pair
     f = (math.log(target) - math.log(m1)) / (math.log(m2) - math.log(m1))
     return math.exp(math.log(t1) + f * (math.log(t2) - math.log(t1)))
+
+
+def cpu_name():
+    """The CPU's model name, as the studies' READMEs name the machine."""
+    with open("/proc/cpuinfo") as f:
+        return next((l.split(":", 1)[1].strip() for l in f if l.startswith("model name")), "unknown CPU")

@@ -64,13 +64,14 @@ sys.path.insert(0, HERE)
 
 import tessera  # noqa: E402
 from helpers import render, set_size  # noqa: E402
-from efficiency import time_for_mse  # noqa: E402
+from efficiency import cpu_name, time_for_mse  # noqa: E402
 
 if not hasattr(bpy.types.Scene, "tessera"):
     tessera.register()
 from tessera import engine  # noqa: E402
 
 os.makedirs(args.out, exist_ok=True)
+CPU = cpu_name()
 LADDERS = {"TESSERA": args.tessera_ladder, "CYCLES": [args.cycles_samples]}
 
 
@@ -145,10 +146,9 @@ for path in args.scenes:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)
-    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), "unknown CPU")
     top = max(args.tessera_ladder)
     lines = ["# Efficiency at each scene's own resolution: Tessera and Cycles", "",
-             f"Blender {bpy.app.version_string}, {cpu}, {os.cpu_count()} cores, {time.strftime('%Y-%m-%d')}, "
+             f"Blender {bpy.app.version_string}, {CPU}, {os.cpu_count()} cores, {time.strftime('%Y-%m-%d')}, "
              f"{args.bounces} max bounces, {args.seeds} seeds a point unless the table says otherwise (seeds 0..N-1, the "
              "engines taking turns). "
              "MSE: the per-pixel variance between the seeds' renders, averaged over pixels and channels (the expected "
