@@ -110,6 +110,7 @@ def render_options(settings, region):
     opt.clamp_direct = settings.clamp_direct
     opt.clamp_indirect = settings.clamp_indirect
     opt.light_threshold = settings.light_threshold
+    opt.caustic_light_paths = settings.caustic_light_paths
     opt.adaptive_threshold = settings.adaptive_threshold
     opt.adaptive_min_samples = settings.adaptive_min_samples
     opt.time_limit = settings.time_limit
@@ -252,6 +253,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                    f"{pixel_samples_per_s / 1e6:.3f} Msamples/s, {rays_per_s / 1e6:.2f} Mrays/s, "
                    + (f"estimated error {100 * rs['estimated_error']:.2f}%" if rs["estimated_error"] > 0
                       else "error not estimated (Estimate Error is off)"))
+        if rs["light_paths"]:
+            summary += f", {rs['light_paths']} caustic light paths"
         if rs["antialiased_pixels"]:
             summary += f", emitter antialiasing on {rs['antialiased_pixels']} pixels"
         if rs["invalid_samples"]:

@@ -102,6 +102,13 @@ class TesseraRenderSettings(bpy.types.PropertyGroup):
         "average, a little more noise, fewer rays to lights that barely reach a point (Cycles' Light "
         "Threshold). 0 traces every light sample",
         default=0.01, min=0.0, soft_max=1.0, precision=3, step=0.1)
+    caustic_light_paths: FloatProperty(
+        name="Caustic Light Paths", description="Light paths traced per camera sample from small point and spot "
+        "lights through glass and mirrors, for the caustics seen directly on rough surfaces (path tracing finds "
+        "those only when a bounce happens to hit the tiny light through the glass). The same image on average "
+        "with far less noise in such caustics; used only where the scene has such lights and smooth surfaces, "
+        "with a pinhole camera and no clamping. 0 disables",
+        default=0.25, min=0.0, soft_max=2.0, precision=2, step=5)
     diffuse_texture_blur: FloatProperty(
         name="Diffuse Texture Blur", description="After a diffuse bounce, image textures that drive the surface "
         "(color, metallic, roughness) are read box-filtered over this fraction of the image's width and height, "

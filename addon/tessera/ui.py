@@ -67,6 +67,7 @@ class TESSERA_PT_light_paths(TesseraPanel, bpy.types.Panel):
         col = layout.column(align=True, heading="Clamping")
         col.prop(settings, "clamp_direct")
         col.prop(settings, "clamp_indirect")
+        layout.prop(settings, "caustic_light_paths")
         layout.prop(settings, "diffuse_texture_blur")
         layout.prop(settings, "rr_depth")
 

@@ -38,6 +38,14 @@ float PixelFilter::warp(float u) const {
   return (1 - t) * inverse_cdf_[i] + t * inverse_cdf_[i + 1];
 }
 
+float PixelFilter::density(float x) const {
+  const size_t n = inverse_cdf_.size();
+  if (!(x >= inverse_cdf_.front() && x < inverse_cdf_.back())) return 0.0f;
+  const size_t i = size_t(std::upper_bound(inverse_cdf_.begin(), inverse_cdf_.end(), x) - inverse_cdf_.begin()) - 1;
+  const float dx = inverse_cdf_[i + 1] - inverse_cdf_[i];
+  return dx > 0.0f ? 1.0f / (float(n - 1) * dx) : 0.0f;
+}
+
 }  // namespace tessera
 
 namespace tessera {

@@ -13,6 +13,10 @@ class PixelFilter {
   explicit PixelFilter(float width);
   // Offset from the pixel centre, in pixels.
   vec2 sample(vec2 u) const { return vec2(warp(u.x), warp(u.y)); }
+  // The density of one coordinate of sample() at offset x (per pixel): the
+  // warp is piecewise linear, so its density is piecewise constant.
+  float density(float x) const;
+  float radius() const { return -inverse_cdf_.front(); }
 
  private:
   float warp(float u) const;

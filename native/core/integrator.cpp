@@ -140,6 +140,10 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
   // path scatters (on through transparent surfaces), then that of the lobe
   // it scattered by.
   RayKind kind = kRayCamera;
+  // Light tracing's partition: 1 after the first scattering vertex when it
+  // scattered by a rough lobe, 2 once delta vertices followed it (and only
+  // they), -1 otherwise.
+  int caustic_chain = 0;
   // Russian roulette as Cycles does it (path_state_continuation_probability):
   // survive with sqrt of the throughput's largest component, weighted up by
   // its inverse.
@@ -169,7 +173,7 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
           light_pdf = light_pdf_from_vertex(lights, ray, mis_t, light, t_light, light_pdf, prev_p, prev_n, kind);
         float w = count_emission_fully ? 1.0f : power_heuristic(prev_bsdf_pdf, light_pdf);
         if (camera_le && vertex == 0) *camera_le += clamped(le, options.clamp_direct);
-        add(bounce, beta * le * w);
+        if (!(caustic_chain == 2 && features.traced_lights && features.traced_lights[light])) add(bounce, beta * le * w);
       }
     }
 
@@ -302,6 +306,8 @@ vec3 Li(const Scene& scene, Ray ray, Sampler& sampler, const RenderOptions& opti
       continue;
     }
     beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf);
+    if (bounce == 0) caustic_chain = bs.delta ? -1 : 1;
+    else if (caustic_chain >= 1) caustic_chain = bs.delta ? 2 : -1;
     if (first) first->scattered();
     prev_bsdf_pdf = bs.pdf;
     prev_p = si.p;

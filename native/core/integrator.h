@@ -31,6 +31,9 @@ struct SceneFeatures {
   // emitting world): only then are pixels' camera emission statistics kept
   // and their edges supersampled (RenderSession, emitter antialiasing).
   bool camera_emission = true;
+  // Per light: 1 if light tracing (light_tracer.h) takes the paths camera ->
+  // rough surface -> delta surfaces -> that light, which Li then drops.
+  const uint8_t* traced_lights = nullptr;
   // Every feature modelled, whatever the scene has (RenderOptions::specialise off).
   static SceneFeatures all() { return {true, true, true, true}; }
 };

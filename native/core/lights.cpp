@@ -802,4 +802,6 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
   return best;
 }
 
+float light_spot_attenuation(const Light& l, const vec3& dir_from_light) { return spot_attenuation(l, dir_from_light); }
+
 }  // namespace tessera

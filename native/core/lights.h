@@ -70,6 +70,9 @@ struct Light {
 // sample() then draws directions uniformly in the solid angle of the whole
 // rectangle (Urena et al. 2013, as for area lights), one entry instead of
 // two (Scene::collect_emissive_triangles pairs them).
+// A spot light's smooth edge for a direction from the light (lights.cpp).
+float light_spot_attenuation(const Light& l, const vec3& dir_from_light);
+
 struct EmissiveTriangle {
   static constexpr uint32_t kAlone = ~0u;
   vec3 p0, e1, e2;  // world space

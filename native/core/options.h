@@ -38,6 +38,12 @@ struct RenderOptions {
   // many camera rays per sample (its path's and a power of two more, which
   // only look for that emission); 1: off.
   int max_camera_rays = 64;
+  // Caustic light paths (light_tracer.h): light paths traced per camera
+  // sample from small point and spot lights through glass and mirrors, for
+  // the caustics the camera sees on rough surfaces (which path tracing finds
+  // only by BSDF sampling a tiny light through them). Used only where the
+  // scene has such lights and smooth surfaces; 0: off.
+  float caustic_light_paths = 0.25f;
   // Adaptive sampling (render.cpp): after each pass, a pixel with at least
   // adaptive_min_samples (0: automatic) stops when its estimated error
   // (Cycles' formula) has been below adaptive_threshold at two pass

@@ -32,6 +32,14 @@ RenderSession::RenderSession(const Scene& scene, const RenderOptions& options)
   for (int b = 0; b < kNumDataPasses; ++b)
     if (data_passes_.mask() & (1u << b)) pass_display_[b].assign(film_.size() * pass_channels(1u << b), 0.0f);
   if (options.passes & kPassSampleCount) sample_count_display_.assign(film_.size(), 0.0f);
+  // Caustics from small lights through smooth surfaces, where the scene has them (light_tracer.h).
+  light_tracer_ = std::make_unique<LightTracer>(scene, options_, filter_, x0_, y0_, x1_, y1_);
+  if (light_tracer_->active()) {
+    features_.traced_lights = light_tracer_->traced().data();
+    light_image_.assign(film_.size(), vec3(0.0f));
+  } else {
+    light_tracer_.reset();
+  }
 }
 
 void RenderSession::render_tile(int tile, PathCounters& counters) {
@@ -339,6 +347,31 @@ void RenderSession::render() {
       });
     });
     if (cancel_.load()) break;
+    if (light_tracer_ && pass_samples > 0 && !timed_out.load()) {
+      // Light paths in proportion to the camera samples this pass took, in
+      // chunks whose connections are added in chunk order: the light image
+      // does not depend on the threads.
+      const uint64_t n = uint64_t(std::llround(double(options_.caustic_light_paths) * double(pass_samples)));
+      constexpr uint64_t kChunk = 4096;
+      std::vector<std::vector<LightTracer::Splat>> chunks((n + kChunk - 1) / kChunk);
+      const uint64_t first = light_paths_;
+      arena.execute([&] {
+        tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
+          const uint64_t b = first + c * kChunk;
+          light_tracer_->trace(b, std::min(kChunk, first + n - b), options_.seed, chunks[c], counters.local());
+        });
+      });
+      // Each band of rows takes the splats that reach it, all in path order.
+      const int bands = 16, rows = (height() + bands - 1) / bands;
+      arena.execute([&] {
+        tbb::parallel_for(0, bands, [&](int band) {
+          const int y0 = y0_ + band * rows, y1 = std::min(y1_, y0 + rows);
+          for (const auto& chunk : chunks)
+            for (const LightTracer::Splat& sp : chunk) light_tracer_->splat(sp, light_image_, y0, y1);
+        });
+      });
+      light_paths_ += n;
+    }
     const double pass_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - pass_start).count();
     if (!timed_out.load() && pass_samples > 0) seconds_per_pixel_sample = pass_seconds / double(pass_samples);
     // done: the pass's sample count (uniform passes; tiles the time limit
@@ -409,7 +442,8 @@ void RenderSession::render() {
     {
       std::lock_guard<std::mutex> lock(display_mutex_);
       for (size_t i = 0; i < num_pixels; ++i) {
-        const vec3 m = film_.mean(i);
+        vec3 m = film_.mean(i);
+        if (light_tracer_) m += light_image_[i] * float(light_tracer_->scale(light_paths_));
         display_[4 * i + 0] = m.x;
         display_[4 * i + 1] = m.y;
         display_[4 * i + 2] = m.z;
@@ -461,6 +495,7 @@ void RenderSession::render() {
   stats_.pixel_samples = pixel_samples_.load();
   stats_.estimated_error = estimated_error_.load();
   stats_.active_pixels = active;
+  stats_.light_paths = light_paths_;
   stats_.antialiased_pixels = 0;
   if (film_.has_camera_emission())
     for (size_t i = 0; i < num_pixels; ++i) stats_.antialiased_pixels += film_.extra_camera_rays(i) > 0;

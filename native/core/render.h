@@ -10,10 +10,12 @@
 #pragma once
 #include <atomic>
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <vector>
 #include "film.h"
 #include "integrator.h"
+#include "light_tracer.h"
 
 namespace tessera {
 
@@ -27,6 +29,7 @@ struct RenderStats {
   double estimated_error = 0.0;  // Film::estimated_relative_error at the end
   size_t active_pixels = 0;    // pixels adaptive sampling had not stopped
   size_t antialiased_pixels = 0;  // pixels with extra camera rays (emitter antialiasing)
+  uint64_t light_paths = 0;    // caustic light paths traced (light_tracer.h; 0: not used)
   // Why the render ended: "samples", "noise threshold" (every pixel
   // converged), "error target", "time limit", "cancelled".
   const char* stop_reason = "samples";
@@ -117,6 +120,9 @@ class RenderSession {
   int x0_, y0_, x1_, y1_;
   int tiles_x_, tiles_y_;
   Film film_;
+  std::unique_ptr<LightTracer> light_tracer_;  // null: no caustics to light-trace
+  std::vector<vec3> light_image_;             // its splats, summed
+  uint64_t light_paths_ = 0;                  // light paths traced so far
   std::vector<int> pass_end_;  // per pixel: the sample count this pass renders it to
   std::vector<double> weight_;  // scratch of allocate_by_error
   DataPasses data_passes_;  // the enabled passes besides Combined (none: nothing recorded)

@@ -161,6 +161,7 @@ class PySession {
     d["estimated_error"] = s.estimated_error;
     d["active_pixels"] = s.active_pixels;
     d["antialiased_pixels"] = s.antialiased_pixels;
+    d["light_paths"] = s.light_paths;
     d["stop_reason"] = std::string(s.stop_reason);
     d["cancelled"] = s.cancelled;
     return d;
@@ -202,6 +203,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("clamp_direct", &RenderOptions::clamp_direct)
       .def_readwrite("clamp_indirect", &RenderOptions::clamp_indirect)
       .def_readwrite("light_threshold", &RenderOptions::light_threshold)
+      .def_readwrite("caustic_light_paths", &RenderOptions::caustic_light_paths)
       .def_readwrite("adaptive_threshold", &RenderOptions::adaptive_threshold)
       .def_readwrite("adaptive_min_samples", &RenderOptions::adaptive_min_samples)
       .def_readwrite("time_limit", &RenderOptions::time_limit)
