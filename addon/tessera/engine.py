@@ -268,7 +268,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                                  pixel_samples=rs["pixel_samples"], samples_per_second=pixel_samples_per_s,
                                  mean_samples=mean_spp, estimated_error=rs["estimated_error"],
                                  stop_reason=rs["stop_reason"], active_pixels=rs["active_pixels"],
-                                 antialiased_pixels=rs["antialiased_pixels"],
+                                 antialiased_pixels=rs["antialiased_pixels"], light_paths=rs["light_paths"],
                                  warnings=list(report.warnings), display_updates=display_updates,
                                  progress_updates=progress_updates, final_progress=progress)
 

@@ -47,7 +47,7 @@ LightTracer::LightTracer(const Scene& scene, const RenderOptions& options, const
                            options.max_transmission_bounces >= options.max_bounces;
   if (!(options.caustic_light_paths > 0.0f) || cam.type != Camera::Type::Perspective || cam.has_lens() ||
       !full_frame || !kind_limits || options.clamp_direct > 0.0f || options.clamp_indirect > 0.0f ||
-      options.max_bounces < 1 || scene_features(scene).transparent)
+      options.max_bounces < 1 || scene_features(scene).transparent || filter.radius() < 0.5f)
     return;
   for (const Instance& inst : scene.instances)
     if (inst.visibility != kVisibleToAll) return;

@@ -15,7 +15,9 @@
 // test from that surface accepts.
 //
 // Used (active()) only when the scene has such lights and surfaces that can
-// scatter by a delta lobe, a pinhole perspective camera, the full frame, and
+// scatter by a delta lobe, a pinhole perspective camera, the full frame, a
+// pixel filter at least a pixel wide (a splat lands in a pixel by the filter's
+// density there; a pinpoint filter would take almost none), and
 // none of what would make the two halves count different paths: transparent
 // surfaces, clamping, per-kind bounce limits under the total, instances or
 // lights hidden from some rays, textures whose blurred level paths read

@@ -48,6 +48,25 @@ def test_light_threshold_reaches_the_core_and_keeps_the_mean(cornell):
     assert some.mean() == pytest.approx(every.mean(), rel=0.02)
 
 
+def test_caustic_light_paths_reach_the_core_and_keep_the_mean():
+    # bunny_glass: the glass bunny's caustic of the 1 cm spot light. With
+    # caustic light paths the caustic is light-traced (and the path tracer
+    # drops the same paths); without, path tracing alone. The image means
+    # agree within the noise of path tracing's caustic, and the light paths
+    # show in the render log.
+    bunny = open_scene("bunny_glass.blend")
+    set_size(bunny, 64)
+    bunny.tessera.estimate_error = False
+    means = {}
+    for paths in (0.0, 0.25):
+        bunny.tessera.caustic_light_paths = paths
+        means[paths] = np.mean([render(bunny, 'TESSERA', samples=64, seed=s)[..., :3].mean() for s in range(4)])
+        assert (stats()["light_paths"] > 0) == (paths > 0)
+    assert stats()["light_paths"] == round(0.25 * 64 * 64 * 48)
+    print(f"bunny_glass means: path tracing {means[0.0]:.5f}, with caustic light paths {means[0.25]:.5f}")
+    assert means[0.25] == pytest.approx(means[0.0], rel=0.02)
+
+
 def test_diffuse_texture_blur_reaches_the_textures_and_keeps_the_mean():
     # modern_hall's wood, tiles and wallpaper are image textures: with the blur
     # the paths after a diffuse bounce read their blurred levels, so the image

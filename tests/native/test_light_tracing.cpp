@@ -172,6 +172,9 @@ TEST(LightTracing, OnlyWhereTheSceneAndSettingsAllowIt) {
     RenderOptions kinds = options(0.25f, 2, 0);
     kinds.max_transmission_bounces = 2;
     EXPECT_EQ(light_paths(s, kinds), 0u);
+    RenderOptions pinpoint = options(0.25f, 2, 0);
+    pinpoint.filter_width = 0.01f;
+    EXPECT_EQ(light_paths(s, pinpoint), 0u);
     RenderOptions region = options(0.25f, 2, 0);
     region.region_x0 = 4, region.region_x1 = 20, region.region_y0 = 4, region.region_y1 = 20;
     EXPECT_EQ(light_paths(s, region), 0u);
