@@ -7,6 +7,8 @@
 namespace tessera {
 
 namespace {
+// A light path's random numbers: a hash chain from (seed, path index), so that
+// a path is the same whichever thread traces it.
 struct PathRng {
   uint32_t state;
   float next() {
@@ -18,9 +20,7 @@ struct PathRng {
     return vec2(a, next());
   }
 };
-}  // namespace
 
-namespace {
 // Whether a material can scatter by a delta lobe (microfacet.h's kSmoothAlpha),
 // and whether one that can reads a texture's blurred level after a diffuse
 // bounce (which the light paths, not knowing the camera path's lobe, could
