@@ -76,14 +76,7 @@ LightTracer::LightTracer(const Scene& scene, const RenderOptions& options, const
   if (lights_.empty()) return;
   traced_.assign(lights.size(), 0);
   for (uint32_t i : lights_) traced_[i] = 1;
-  double total = 0.0;
-  for (float p : power) total += p;
-  double sum = 0.0;
-  for (float p : power) {
-    pmf_.push_back(float(p / total));
-    sum += p / total;
-    cdf_.push_back(float(sum));
-  }
+  choice_ = AliasTable(power);
   to_camera_ = glm::inverse(cam.to_world);
   camera_pos_ = vec3(cam.to_world[3]);
   film_area_ = (cam.right - cam.left) * (cam.top - cam.bottom);
@@ -97,9 +90,8 @@ void LightTracer::trace(uint64_t first, uint64_t count, uint32_t seed, std::vect
 void LightTracer::trace_path(uint64_t index, uint32_t seed, std::vector<Splat>& out, PathCounters& counters) const {
   PathRng rng{hash_combine(hash_combine(hash_u32(seed ^ 0x5bd1e995U), uint32_t(index)), uint32_t(index >> 32))};
   // A traced light by power.
-  const float u_light = rng.next();
-  size_t k = 0;
-  while (k + 1 < cdf_.size() && u_light >= cdf_[k]) ++k;
+  float pmf;
+  const uint32_t k = choice_.sample(rng.next(), &pmf);
   const Light& l = scene_.light_sampler().lights()[lights_[k]];
   // A ray of the light: a direction u uniform in its cone and a point
   // uniform on the disk of its radius across u, so that rays are uniform in
@@ -108,17 +100,13 @@ void LightTracer::trace_path(uint64_t index, uint32_t seed, std::vector<Splat>& 
   // surface z, it is one of the rays the path tracer's ray from z to the
   // light is (the disk facing z, lights.cpp) when it crosses that disk:
   // others are dropped, so both count the same rays.
-  const vec2 u_dir = rng.next_2d();
-  const float cos_cone = cos_cone_[k];
-  const float cos_t = 1.0f - u_dir.x * (1.0f - cos_cone);
-  const float sin_t = safe_sqrt(1.0f - cos_t * cos_t);
-  const vec2 cs = cos_sin_2pi(u_dir.y);
   const vec3 axis = l.type == LightType::Spot ? l.direction : vec3(0, 0, 1);
   vec3 t, b;
   make_basis(axis, t, b);
-  const vec3 u = glm::normalize(sin_t * cs.x * t + sin_t * cs.y * b + cos_t * axis);
-  const float pdf_u = 1.0f / (2.0f * kPi * (1.0f - cos_cone));
-  const float atten = l.type == LightType::Spot ? light_spot_attenuation(l, u) : 1.0f;
+  const vec3 local = sample_uniform_cone(rng.next_2d(), cos_cone_[k]);
+  const vec3 u = glm::normalize(local.x * t + local.y * b + local.z * axis);
+  const float pdf_u = uniform_cone_pdf(cos_cone_[k]);
+  const float atten = l.type == LightType::Spot ? spot_attenuation(l, u) : 1.0f;
   if (!(atten > 0.0f)) return;
   make_basis(u, t, b);
   const vec2 q = sample_uniform_disk_concentric(rng.next_2d()) * l.radius;
@@ -139,7 +127,7 @@ void LightTracer::trace_path(uint64_t index, uint32_t seed, std::vector<Splat>& 
     if (glm::dot(on_disk, on_disk) > l.radius * l.radius) return;
   }
   vec3 w_light = -u;  // towards the light
-  vec3 beta = l.radiance * (atten * kPi * l.radius * l.radius / (pmf_[k] * pdf_u));
+  vec3 beta = l.radiance * (atten * kPi * l.radius * l.radius / (pmf * pdf_u));
 
   // Through delta surfaces: at least one before a connection.
   int deltas = 0;

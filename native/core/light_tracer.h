@@ -29,6 +29,7 @@
 #include "film.h"
 #include "integrator.h"
 #include "options.h"
+#include "sampling.h"
 #include "scene.h"
 
 namespace tessera {
@@ -68,7 +69,7 @@ class LightTracer {
   const PixelFilter& filter_;
   int x0_, y0_, x1_, y1_, full_w_, full_h_;
   std::vector<uint32_t> lights_;  // traced light indices
-  std::vector<float> cdf_, pmf_;  // over lights_, by power
+  AliasTable choice_;             // over lights_, by power
   std::vector<float> cos_cone_;   // per traced light: the cone its directions are drawn in
   std::vector<uint8_t> traced_;
   glm::mat4 to_camera_{1.0f};

@@ -19,22 +19,6 @@ float spot_cos_to_axis(const Light& l, const vec3& w) {
   return len > 0.0f ? -local.z / len : 0.0f;
 }
 
-// Smooth edge of a spot light, as Cycles' spot_light_attenuation: cut at
-// the cone and smoothstepped over the blend, times the cosine to the axis
-// in Cycles 3.x (spot_cosine), without it in 4.0+. dir_from_light: from the
-// point on the light towards the shading point (Cycles' -ls->D).
-float spot_attenuation(const Light& l, const vec3& dir_from_light) {
-  const float c = spot_cos_to_axis(l, dir_from_light);
-  if (c <= l.spot_cos) return 0.0f;
-  float a = l.spot_cosine ? c : 1.0f;
-  const float t = c - l.spot_cos;
-  if (l.spot_smooth > 0.0f && t < l.spot_smooth) {
-    const float x = t / l.spot_smooth;
-    a *= x * x * (3.0f - 2.0f * x);
-  }
-  return a;
-}
-
 // Cosine of the widest half angle of a spot's cone about `direction`: its
 // own under no or uniform scale, else that of the longer of the scaled x and
 // y axes (Cycles' cos_half_larger_spread), for the light BVH's bounds.
@@ -361,6 +345,22 @@ float light_power(const Light& l, float scene_radius) {
 }
 
 }  // namespace
+
+// Smooth edge of a spot light, as Cycles' spot_light_attenuation: cut at
+// the cone and smoothstepped over the blend, times the cosine to the axis
+// in Cycles 3.x (spot_cosine), without it in 4.0+. dir_from_light: from the
+// point on the light towards the shading point (Cycles' -ls->D).
+float spot_attenuation(const Light& l, const vec3& dir_from_light) {
+  const float c = spot_cos_to_axis(l, dir_from_light);
+  if (c <= l.spot_cos) return 0.0f;
+  float a = l.spot_cosine ? c : 1.0f;
+  const float t = c - l.spot_cos;
+  if (l.spot_smooth > 0.0f && t < l.spot_smooth) {
+    const float x = t / l.spot_smooth;
+    a *= x * x * (3.0f - 2.0f * x);
+  }
+  return a;
+}
 
 void LightSampler::build(std::vector<Light> lights, std::vector<EmissiveTriangle> triangles, const Background* world,
                          float scene_radius) {
@@ -801,7 +801,5 @@ int LightSampler::intersect_lights(const vec3& o, const vec3& d, float tmax, flo
   }
   return best;
 }
-
-float light_spot_attenuation(const Light& l, const vec3& dir_from_light) { return spot_attenuation(l, dir_from_light); }
 
 }  // namespace tessera

@@ -63,6 +63,10 @@ struct Light {
   float area = 0.0f;        // area lights: surface area
 };
 
+// A spot light's smooth edge for a direction from the light (lights.cpp;
+// light tracing weighs its rays by it too).
+float spot_attenuation(const Light& l, const vec3& dir_from_light);
+
 // An emissive triangle p0 + s e1 + t e2 (s, t >= 0, s + t <= 1) or, when
 // `second` names the other triangle of the pair, the rectangle p0 + s e1 +
 // t e2 (s, t in [0, 1], e1 perpendicular to e2) that two emissive triangles
@@ -70,9 +74,6 @@ struct Light {
 // sample() then draws directions uniformly in the solid angle of the whole
 // rectangle (Urena et al. 2013, as for area lights), one entry instead of
 // two (Scene::collect_emissive_triangles pairs them).
-// A spot light's smooth edge for a direction from the light (lights.cpp).
-float light_spot_attenuation(const Light& l, const vec3& dir_from_light);
-
 struct EmissiveTriangle {
   static constexpr uint32_t kAlone = ~0u;
   vec3 p0, e1, e2;  // world space

@@ -441,9 +441,10 @@ void RenderSession::render() {
     const double err = film_.estimated_relative_error();
     {
       std::lock_guard<std::mutex> lock(display_mutex_);
+      const float light_scale = light_tracer_ ? float(light_tracer_->scale(light_paths_)) : 0.0f;
       for (size_t i = 0; i < num_pixels; ++i) {
         vec3 m = film_.mean(i);
-        if (light_tracer_) m += light_image_[i] * float(light_tracer_->scale(light_paths_));
+        if (light_tracer_) m += light_image_[i] * light_scale;
         display_[4 * i + 0] = m.x;
         display_[4 * i + 1] = m.y;
         display_[4 * i + 2] = m.z;

@@ -31,6 +31,16 @@ inline vec3 sample_uniform_sphere(vec2 u) {
 }
 constexpr float kUniformSpherePdf = 1.0f / (4.0f * kPi);
 
+// Uniform direction in the cone of directions within acos(cos_max) of +z
+// (pbrt-v4 A.5.4); cos_max = -1 is the whole sphere. Its density is
+// uniform_cone_pdf(cos_max).
+inline vec3 sample_uniform_cone(vec2 u, float cos_max) {
+  const float z = 1.0f - u.x * (1.0f - cos_max);
+  const vec2 cs = safe_sqrt(1.0f - z * z) * cos_sin_2pi(u.y);
+  return vec3(cs.x, cs.y, z);
+}
+inline float uniform_cone_pdf(float cos_max) { return 1.0f / (2.0f * kPi * (1.0f - cos_max)); }
+
 // Uniform point on a triangle, as barycentrics (b1, b2) of the 2nd and 3rd
 // vertex (Heitz 2019, "A low-distortion map between triangle and square").
 inline vec2 sample_uniform_triangle(vec2 u) {

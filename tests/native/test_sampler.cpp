@@ -230,3 +230,24 @@ TEST(Sampler, Distribution1DGuideTableFindsTheBinarySearchSegment) {
     }
   }
 }
+
+// sample_uniform_cone: unit directions within the cone, cos(theta) uniform in
+// [cos_max, 1] (equal solid angle per band) and no preferred azimuth.
+TEST(Sampling, UniformConeIsUniformInTheCone) {
+  for (const float cos_max : {-1.0f, 0.0f, 0.9f}) {
+    const int n = 64;
+    double mean_z = 0.0, mean_x = 0.0, mean_y = 0.0;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const vec3 w = sample_uniform_cone(vec2((i + 0.5f) / n, (j + 0.5f) / n), cos_max);
+        ASSERT_NEAR(glm::length(w), 1.0f, 1e-5f);
+        ASSERT_GE(w.z, cos_max - 1e-6f);
+        mean_z += w.z, mean_x += w.x, mean_y += w.y;
+      }
+    const double m = double(n) * n;
+    EXPECT_NEAR(mean_z / m, 0.5 * (1.0 + cos_max), 1e-4) << cos_max;
+    EXPECT_NEAR(mean_x / m, 0.0, 1e-4) << cos_max;
+    EXPECT_NEAR(mean_y / m, 0.0, 1e-4) << cos_max;
+  }
+  EXPECT_FLOAT_EQ(uniform_cone_pdf(-1.0f), kUniformSpherePdf);
+}
